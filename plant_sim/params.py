@@ -1,0 +1,232 @@
+"""Rig constants, plant parameters and model effects: the one source of truth.
+
+Everything is SI: m, m^2, m^3, Pa, N, kg, s, V. The defaults are the paper's
+Table 1 (Lin et al. 2023) with A1 = 0.008 m^2 (DESIGN.md section 5) and
+f_v = 25 N s/m so that B + f_v = 6025, Table 2's true value (paper-notes.md).
+
+The numerical core never sees these pydantic models: `plant_vector` flattens
+them into one float64 array whose layout is given by the ``P_*`` indices, so a
+fleet of rigs is a 2-D array ``(n_rigs, N_PARAMS)``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = [
+    "RigConfig",
+    "PlantParams",
+    "Effects",
+    "plant_vector",
+    "N_PARAMS",
+    "EFFECT_NAMES",
+]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class RigConfig(_Model):
+    """Constants of one rig that the monitor knows (published on ``<ns>/rig/<id>/config``).
+
+    Attributes
+    ----------
+    A1, A2 : float
+        Effective piston areas, cap and rod side [m^2]. The paper omits A1; 0.008 m^2.
+    V10, V20 : float
+        Chamber volumes at x1 = 0, including the pipe volumes [m^3] (eqs 12-13).
+    p_s : float
+        Supply pressure [Pa].
+    F_L : float
+        Configured external load force [N].
+    K_p : float
+        Proportional controller gain [V/V] (eq 2).
+    K_f : float
+        Position sensor gain [V/m] (eq 2).
+    sample_rate : float
+        Sample rate of the published channels [Hz].
+    x1_span, p_span, x5_span : float
+        Full-scale span of the position [m], pressure [Pa] and spool [m] sensors; the
+        "stress" noise model is 0.1 % of these.
+    """
+
+    A1: float = Field(0.008, gt=0)
+    A2: float = Field(0.004, gt=0)
+    V10: float = Field(0.11, gt=0)
+    V20: float = Field(0.09, gt=0)
+    p_s: float = Field(12e6, gt=0)
+    F_L: float = 4000.0
+    K_p: float = Field(1.0, gt=0)
+    K_f: float = Field(40.0, gt=0)
+    sample_rate: float = Field(100.0, gt=0)
+    x1_span: float = Field(0.1, gt=0)
+    p_span: float = Field(12e6, gt=0)
+    x5_span: float = Field(1e-3, gt=0)
+
+    @property
+    def h(self) -> float:
+        """Sample period [s]."""
+        return 1.0 / self.sample_rate
+
+
+class PlantParams(_Model):
+    """Physical parameters of the plant (the truth a simulation runs on).
+
+    Attributes
+    ----------
+    m : float
+        Moving mass [kg].
+    B : float
+        Viscous damping of piston and load [N s/m].
+    K_t : float
+        Load spring stiffness [N/m].
+    beta_e : float
+        Effective bulk modulus [Pa].
+    rho : float
+        Oil density [kg/m^3].
+    C_d : float
+        Orifice discharge coefficient [-].
+    W : float
+        Orifice area gradient [m].
+    C_ip, C_ep : float
+        Internal and external leakage coefficients [m^3/(s Pa)].
+    K_sv : float
+        Servo valve gain [m/V].
+    omega_sv : float
+        Servo valve natural frequency [rad/s].
+    zeta_sv : float
+        Servo valve damping ratio [-].
+    f_c : float
+        Coulomb friction [N].
+    f_v : float
+        Viscous friction [N s/m] (adds to B; the identifiable sum is B + f_v).
+    """
+
+    m: float = Field(120.0, gt=0)
+    B: float = Field(6000.0, ge=0)
+    K_t: float = Field(1e6, ge=0)
+    beta_e: float = Field(7e8, gt=0)
+    rho: float = Field(880.0, gt=0)
+    C_d: float = Field(0.6, gt=0)
+    W: float = Field(0.03, gt=0)
+    C_ip: float = Field(3e-11, ge=0)
+    C_ep: float = Field(0.0, ge=0)
+    K_sv: float = Field(2.5e-4, gt=0)
+    omega_sv: float = Field(100.0, gt=0)
+    zeta_sv: float = Field(0.5, gt=0)
+    f_c: float = Field(5.0, ge=0)
+    f_v: float = Field(25.0, ge=0)
+
+    @property
+    def CdW_sqrt_rho(self) -> float:
+        """The identified orifice parameter C_d W / sqrt(rho) [m^2.5/kg^0.5]."""
+        return self.C_d * self.W / math.sqrt(self.rho)
+
+    def identified(self) -> dict[str, float]:
+        """The true values of the identified parameters, by their bus names (DESIGN.md 3)."""
+        w2 = self.omega_sv**2
+        return {
+            "m": self.m,
+            "B_fv": self.B + self.f_v,
+            "f_c": self.f_c,
+            "K_t": self.K_t,
+            "inv_beta_e": 1.0 / self.beta_e,
+            "CdW_sqrt_rho": self.CdW_sqrt_rho,
+            "C_ip": self.C_ip,
+            "C_ep": self.C_ep,
+            "two_zeta_omega": 2.0 * self.zeta_sv * self.omega_sv,
+            "omega_sv2": w2,
+            "K_sv_omega_sv2": self.K_sv * w2,
+        }
+
+
+class Effects(_Model):
+    """Physical effects beyond the paper's model; all off by default.
+
+    Attributes
+    ----------
+    stribeck_F_s : float
+        Stribeck peak above Coulomb friction [N]: F_f = sign(v)(f_c + F_s exp(-(v/v_s)^2)) + f_v v.
+    stribeck_v_s : float
+        Stribeck velocity [m/s].
+    x_max : float
+        Spool travel limit [m] (inf = none); the spool stops at +-x_max.
+    dead_band : float
+        Spool overlap [m]: no flow while |x_v| < dead_band.
+    supply_sag : float
+        Supply line resistance [Pa/(m^3/s)]: p_s,eff = p_s - R q_supply.
+    air_fraction : float
+        Entrained air volume fraction at atmospheric pressure [-]:
+        1/beta_eff = 1/beta_e + eps p_atm / p^2 (isothermal air).
+    load_offset : float
+        Unknown constant external force beyond the configured F_L [N].
+    sensor_delay : int
+        Delay of the position measurement [samples].
+    sensor_delay_in_loop : bool
+        True: the controller's feedback sees the delayed position too (a slow sensor);
+        False: only the recording is delayed (a logging/transport delay).
+    """
+
+    stribeck_F_s: float = Field(0.0, ge=0)
+    stribeck_v_s: float = Field(0.01, gt=0)
+    x_max: float = Field(math.inf, gt=0)
+    dead_band: float = Field(0.0, ge=0)
+    supply_sag: float = Field(0.0, ge=0)
+    air_fraction: float = Field(0.0, ge=0, lt=1)
+    load_offset: float = 0.0
+    sensor_delay: int = Field(0, ge=0, le=1000)
+    sensor_delay_in_loop: bool = False
+
+    @model_validator(mode="after")
+    def _finite(self) -> "Effects":
+        for name in ("stribeck_F_s", "stribeck_v_s", "dead_band", "supply_sag", "load_offset"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"effect {name} must be finite, got {getattr(self, name)!r}")
+        return self
+
+
+EFFECT_NAMES = (
+    "stribeck_friction",
+    "valve_saturation",
+    "valve_dead_band",
+    "supply_pressure_sag",
+    "entrained_air",
+    "sensor_delay",
+    "load_offset",
+)
+
+P_ATM = 101325.0  # [Pa]
+
+# Layout of the flat parameter vector used by the numerical core.
+(
+    P_A1, P_A2, P_V10, P_V20, P_PS, P_FL, P_KP, P_KF,
+    P_M, P_B, P_KT, P_BETA, P_CDW_RHO, P_CIP, P_CEP, P_KSV, P_WSV, P_ZSV, P_FC, P_FV,
+    P_FS, P_VS, P_XMAX, P_DB, P_SAG, P_AIR, P_FOFF,
+) = range(27)
+N_PARAMS = 27
+
+
+def plant_vector(config: RigConfig, params: PlantParams, effects: Effects | None = None) -> np.ndarray:
+    """Flatten rig constants, plant parameters and effects into the core's vector.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 array of length ``N_PARAMS``, indexed by the ``P_*`` constants (SI).
+        The orifice enters as C_d W / sqrt(rho) [m^2.5/kg^0.5], the form the flow law uses.
+    """
+    e = effects or Effects()
+    v = np.empty(N_PARAMS)
+    v[P_A1], v[P_A2], v[P_V10], v[P_V20] = config.A1, config.A2, config.V10, config.V20
+    v[P_PS], v[P_FL], v[P_KP], v[P_KF] = config.p_s, config.F_L, config.K_p, config.K_f
+    v[P_M], v[P_B], v[P_KT], v[P_BETA] = params.m, params.B, params.K_t, params.beta_e
+    v[P_CDW_RHO], v[P_CIP], v[P_CEP] = params.CdW_sqrt_rho, params.C_ip, params.C_ep
+    v[P_KSV], v[P_WSV], v[P_ZSV] = params.K_sv, params.omega_sv, params.zeta_sv
+    v[P_FC], v[P_FV] = params.f_c, params.f_v
+    v[P_FS], v[P_VS], v[P_XMAX], v[P_DB] = e.stribeck_F_s, e.stribeck_v_s, e.x_max, e.dead_band
+    v[P_SAG], v[P_AIR], v[P_FOFF] = e.supply_sag, e.air_fraction, e.load_offset
+    return v
