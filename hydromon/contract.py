@@ -1,0 +1,137 @@
+"""Bus contract v1 (DESIGN.md section 3): key expressions and payload models.
+
+Every payload type is one pydantic model; its JSON Schema (``model_json_schema``) is what
+MCAP channels carry and what docs/contract.md shows. Payloads are JSON, SI units.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from plant_sim.params import RigConfig
+
+__all__ = [
+    "Sample", "Health", "RigConfig", "GRADES", "STATUSES", "PARAM_NAMES",
+    "RIG_ID_RE", "valid_rig_id", "sample_key", "health_key", "config_key", "liveliness_key",
+    "parse_rig_key", "DEFAULT_NAMESPACE",
+]
+
+DEFAULT_NAMESPACE = "hydro"
+GRADES = ("health", "sub-health", "average", "deterioration", "fault")
+STATUSES = ("converging", "ok", "stale", "bad-input")
+PARAM_NAMES = (
+    "m", "B_fv", "f_c", "K_t", "inv_beta_e", "CdW_sqrt_rho", "C_ip", "C_ep",
+    "two_zeta_omega", "omega_sv2", "K_sv_omega_sv2",
+)
+RIG_ID_RE = re.compile(r"[A-Za-z0-9_-]{1,64}")
+_NS_RE = re.compile(r"[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*")
+
+
+def valid_rig_id(rig_id: str) -> bool:
+    """True if ``rig_id`` is 1-64 chars of ``[A-Za-z0-9_-]`` (safe in keys and file names)."""
+    return isinstance(rig_id, str) and RIG_ID_RE.fullmatch(rig_id) is not None
+
+
+def _check_ns(ns: str) -> str:
+    if not _NS_RE.fullmatch(ns):
+        raise ValueError(f"namespace {ns!r} must be /-separated chunks of [A-Za-z0-9_-]")
+    return ns
+
+
+def _rig_key(ns: str, rig_id: str, leaf: str) -> str:
+    if not valid_rig_id(rig_id):
+        raise ValueError(f"rig id {rig_id!r} must be 1-64 chars of [A-Za-z0-9_-]")
+    return f"{_check_ns(ns)}/rig/{rig_id}/{leaf}"
+
+
+def sample_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
+    return _rig_key(ns, rig_id, "sample")
+
+
+def health_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
+    return _rig_key(ns, rig_id, "health")
+
+
+def config_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
+    return _rig_key(ns, rig_id, "config")
+
+
+def liveliness_key(node: str, ns: str = DEFAULT_NAMESPACE) -> str:
+    if not valid_rig_id(node):
+        raise ValueError(f"node name {node!r} must be 1-64 chars of [A-Za-z0-9_-]")
+    return f"{_check_ns(ns)}/monitor/{node}"
+
+
+def parse_rig_key(key: str, ns: str = DEFAULT_NAMESPACE) -> tuple[str, str] | None:
+    """``(rig_id, leaf)`` for a key ``<ns>/rig/<id>/<leaf>`` of the contract, else None."""
+    prefix = f"{ns}/rig/"
+    if not key.startswith(prefix):
+        return None
+    parts = key[len(prefix):].split("/")
+    if len(parts) != 2 or parts[1] not in ("sample", "health", "config") or not valid_rig_id(parts[0]):
+        return None
+    return parts[0], parts[1]
+
+
+class _Payload(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class Sample(_Payload):
+    """One sample of a rig, ``<ns>/rig/<id>/sample``.
+
+    seq counts samples per rig from 0; t is the rig clock [s]; ug [V]; x1 piston position [m];
+    x3, x4 chamber pressures [Pa]; x5 spool position [m].
+    """
+
+    seq: int = Field(ge=0)
+    t: float
+    ug: float
+    x1: float
+    x3: float
+    x4: float
+    x5: float
+
+    @field_validator("t", "ug", "x1", "x3", "x4", "x5", mode="before")
+    @classmethod
+    def _number(cls, v):
+        # JSON booleans are not numbers here, and neither are strings
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError("must be a number")
+        if not math.isfinite(v):
+            raise ValueError("must be finite")
+        return v
+
+    @field_validator("seq", mode="before")
+    @classmethod
+    def _int(cls, v):
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise ValueError("must be an integer")
+        return v
+
+
+class Health(_Payload):
+    """The monitor's verdict on a rig, ``<ns>/rig/<id>/health``.
+
+    params are by the names in PARAM_NAMES (SI); param_grades grade the graded ones;
+    level is 0 (health) .. 4 (fault), null while the grade is unknown.
+    """
+
+    seq: int = Field(ge=0)
+    t: float
+    grade: Literal["health", "sub-health", "average", "deterioration", "fault", "unknown"]
+    level: int | None = Field(None, ge=0, le=4)
+    confidence: float = Field(ge=0.0, le=1.0)
+    params: dict[str, float]
+    param_grades: dict[str, Literal["health", "sub-health", "average", "deterioration", "fault", "unknown"]]
+    status: Literal["converging", "ok", "stale", "bad-input"]
+    std_errors: dict[str, float] = Field(default_factory=dict)
+
+
+def schemas() -> dict[str, dict]:
+    """JSON Schemas of every payload, by payload name."""
+    return {m.__name__: m.model_json_schema() for m in (Sample, Health, RigConfig)}
