@@ -1,0 +1,406 @@
+"""Health grading: parameter ranges (paper Table 3), SE gating, hysteresis and fusion.
+
+Grades are levels 0 health, 1 sub-health, 2 average, 3 deterioration, 4 fault; -1 is unknown.
+
+Rules (all in :func:`grade_kernel`, which the single-rig and batched paths share):
+
+- **Bands.** A graded parameter has four inner edges ``e_0..e_3`` between the five grades and a
+  direction. Rising: grade = #{j : v > e_j}; falling: grade = #{j : v < e_j}. A value on an edge
+  belongs to the better grade, as Table 3's ``(10, 20]`` brackets say for f_c and B+f_v (its
+  ``[2.6, 2.2], [2.2, 1.7]`` for K_sv omega^2 are ambiguous; we use the same rule). Values
+  beyond Table 3's outer ends clamp: below 4 N f_c is health, above 120 N fault. A two-level
+  parameter (C_ip, C_ep) has all four edges at its fault threshold: grade 0 or 4.
+- **SE gating.** With standard error ``s``, the interval ``v +- z s`` is graded at both ends;
+  if the two grades differ by more than one (the interval spans more than one band, e.g. f_c's
+  6 N health band under an SE of several N), the parameter is not placed (-1) and takes no
+  part in the fusion. A non-finite value or SE is never placed. For a two-level parameter an
+  interval over the threshold spans four grades, so it is not placed.
+- **Hysteresis.** Once placed in band ``b`` a parameter leaves it only when its value is past
+  the edge by a margin ``m_j = min(margin * |e_j|, half the narrower inner band next to e_j)``
+  (default 2 %): the new band is ``b`` clamped to [grade with every edge moved ``m_j`` towards
+  worse, grade with every edge moved towards better]. The cap keeps the rule that a value
+  strictly past the middle of a band is graded in that band whatever the history; it matters
+  for B+f_v, whose bands are 1-2 % of its value (2 % of 6150 is 123 N s/m, its sub-health
+  band is 75 wide). Two-level parameters have no cap. While a parameter is not placed its band
+  memory is kept.
+- **Fusion.** level = max of the placed grades; -1 while the rig has not converged (then no
+  parameter is placed and the state is left as it was) or if nothing is placed.
+- **Confidence.** With independent Gaussian errors ``N(v_p, s_p^2)``, the probability that the
+  true fused grade equals the reported level L over the placed parameters,
+  ``prod_p P_p(grade <= L) - prod_p P_p(grade <= L-1)``, times the fraction of graded
+  parameters that were placed (an unplaced parameter could be anything; this discount is a
+  heuristic). In [0, 1]; 0 when the level is unknown. With ``s = 0`` the probabilities are 0/1,
+  so a level held by hysteresis while the value is just past an edge has confidence 0.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal, NamedTuple
+
+import numpy as np
+from numba import njit
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
+
+from hydromon.contract import GRADES, PARAM_NAMES
+
+__all__ = [
+    "ParamRange", "Ranges", "RangeArrays", "grade_kernel", "GradeResult", "BatchGradeResult",
+    "Grader", "BatchGrader", "grade_of_values", "grade_name", "DEFAULT_RANGES_PATH",
+]
+
+DEFAULT_RANGES_PATH = Path(__file__).with_name("data") / "table3.json"
+
+
+def grade_name(level: int) -> str:
+    """Grade name of a level 0..4 (contract GRADES), ``"unknown"`` for -1."""
+    return GRADES[level] if 0 <= level < len(GRADES) else "unknown"
+
+
+class ParamRange(BaseModel):
+    """Bands of one graded parameter, in its SI unit.
+
+    direction : "rising" (the value grows as the rig degrades) or "falling".
+    edges : the four boundaries between the five grades, in grade order (health|sub, sub|average,
+        average|deterioration, deterioration|fault); strictly increasing if rising, strictly
+        decreasing if falling.
+    fault_threshold : instead of edges, a two-level parameter: on the healthy side of the
+        threshold grade 0, past it grade 4.
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    direction: Literal["rising", "falling"]
+    edges: tuple[float, float, float, float] | None = None
+    fault_threshold: float | None = None
+
+    @model_validator(mode="after")
+    def _check(self) -> ParamRange:
+        if (self.edges is None) == (self.fault_threshold is None):
+            raise ValueError("give exactly one of 'edges' (4 values) or 'fault_threshold'")
+        if self.edges is not None:
+            s = 1.0 if self.direction == "rising" else -1.0
+            for a, b in zip(self.edges, self.edges[1:]):
+                if not s * (b - a) > 0:
+                    raise ValueError(f"edges {list(self.edges)} must be strictly "
+                                     f"{'increasing' if s > 0 else 'decreasing'} for a "
+                                     f"{self.direction} parameter (at {a} -> {b})")
+        return self
+
+    def edge_array(self) -> np.ndarray:
+        """The four edges in grade order [unit of the parameter]; a threshold is repeated 4x."""
+        if self.edges is not None:
+            return np.array(self.edges, dtype=np.float64)
+        return np.full(4, float(self.fault_threshold), dtype=np.float64)
+
+    def margin_array(self, margin: float) -> np.ndarray:
+        """Hysteresis margins of the four edges [unit of the parameter] for a relative margin
+        [-]: ``margin * |e_j|``, capped at half the narrower inner band next to the edge."""
+        e = self.edge_array()
+        m = margin * np.abs(e)
+        if self.edges is not None:
+            w = np.abs(np.diff(e))  # widths of the inner bands 1, 2, 3
+            m = np.minimum(m, 0.5 * np.minimum(np.r_[np.inf, w], np.r_[w, np.inf]))
+        return m
+
+
+class RangeArrays(NamedTuple):
+    """Plain arrays for :func:`grade_kernel`: graded names, their index in the estimate vector,
+    sign (+1 rising, -1 falling), edges and hysteresis margins (n_graded, 4) in grade order [SI]."""
+
+    names: tuple[str, ...]
+    index: np.ndarray
+    sign: np.ndarray
+    edges: np.ndarray
+    margins: np.ndarray
+
+
+class Ranges(BaseModel):
+    """Health ranges: one :class:`ParamRange` per graded parameter, keyed by bus name."""
+
+    model_config = ConfigDict(extra="forbid")
+    params: dict[str, ParamRange]
+    source: str = ""
+
+    @field_validator("params")
+    @classmethod
+    def _names(cls, v: dict[str, ParamRange]) -> dict[str, ParamRange]:
+        bad = [k for k in v if k not in PARAM_NAMES]
+        if bad:
+            raise ValueError(f"unknown parameter name(s) {bad}; known: {list(PARAM_NAMES)}")
+        if not v:
+            raise ValueError("ranges grade no parameter")
+        return v
+
+    @classmethod
+    def load(cls, path: str | Path) -> Ranges:
+        """Read a ranges JSON file; ValueError naming the file and the bad entry."""
+        try:
+            return cls.model_validate_json(Path(path).read_text())
+        except ValidationError as e:
+            raise ValueError(f"bad ranges file {str(path)!r}: {e}") from None
+
+    @classmethod
+    def default(cls) -> Ranges:
+        """The paper's Table 3 (``monitor/data/table3.json``)."""
+        return cls.load(DEFAULT_RANGES_PATH)
+
+    def save(self, path: str | Path) -> None:
+        """Write as JSON (readable by :meth:`load`)."""
+        Path(path).write_text(json.dumps(self.model_dump(exclude_none=True), indent=2) + "\n")
+
+    def to_arrays(self, margin: float = 0.02,
+                  param_names: tuple[str, ...] = PARAM_NAMES) -> RangeArrays:
+        """Arrays for the kernel, graded parameters in ``param_names`` order; ``margin`` is the
+        relative hysteresis margin [-] (see :meth:`ParamRange.margin_array`)."""
+        names = tuple(n for n in param_names if n in self.params)
+        missing = [n for n in self.params if n not in param_names]
+        if missing:
+            raise ValueError(f"graded parameter(s) {missing} not in the estimate vector")
+        index = np.array([param_names.index(n) for n in names], dtype=np.int64)
+        sign = np.array([1.0 if self.params[n].direction == "rising" else -1.0 for n in names])
+        edges = np.array([self.params[n].edge_array() for n in names], dtype=np.float64)
+        margins = np.array([self.params[n].margin_array(margin) for n in names], dtype=np.float64)
+        return RangeArrays(names, index, sign, edges, margins)
+
+
+@njit(cache=True)
+def _count_past(u: float, f: np.ndarray, m: np.ndarray, shift: float) -> int:
+    """#{j : u > f_j + shift m_j}, u and edges f in the worsening coordinate (sign * value)."""
+    n = 0
+    for j in range(f.shape[0]):
+        if u > f[j] + shift * m[j]:
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _p_at_most(g: int, u: float, s: float, f: np.ndarray) -> float:
+    """P(true grade <= g) for a true value ~ N(u, s^2) in the worsening coordinate."""
+    if g < 0:
+        return 0.0
+    if g >= f.shape[0]:
+        return 1.0
+    if s == 0.0:
+        return 1.0 if u <= f[g] else 0.0
+    return 0.5 * math.erfc((u - f[g]) / (s * math.sqrt(2.0)))
+
+
+@njit(cache=True)
+def grade_kernel(values, std_errors, converged, index, sign, edges, margins, z, band):
+    """One grading step for many rigs; updates ``band`` in place.
+
+    Parameters
+    ----------
+    values, std_errors : (n_rigs, n_params) float64
+        Estimates and their standard errors, in PARAM_NAMES order [SI units of each parameter].
+    converged : (n_rigs,) bool
+        The identifier has converged for this rig.
+    index, sign, edges, margins : from :meth:`Ranges.to_arrays` ((n_graded,) int64,
+        (n_graded,) +-1, (n_graded, 4) float64 [SI], (n_graded, 4) float64 >= 0 [SI]).
+    z : float
+        Half-width of the gating interval in standard errors [-].
+    band : (n_rigs, n_graded) int64
+        Hysteresis state, the band each parameter is held in (-1 none yet); updated in place.
+
+    Returns
+    -------
+    level : (n_rigs,) int64, fused level 0..4, -1 unknown.
+    grades : (n_rigs, n_graded) int64, per-parameter grade, -1 not placed.
+    confidence : (n_rigs,) float64 in [0, 1].
+    """
+    n_rigs = values.shape[0]
+    n_g = index.shape[0]
+    level = np.full(n_rigs, -1, dtype=np.int64)
+    grades = np.full((n_rigs, n_g), -1, dtype=np.int64)
+    confidence = np.zeros(n_rigs, dtype=np.float64)
+    f = np.empty(4, dtype=np.float64)
+    for r in range(n_rigs):
+        if not converged[r]:
+            continue
+        n_placed = 0
+        for k in range(n_g):
+            v = values[r, index[k]]
+            s = std_errors[r, index[k]]
+            if not (math.isfinite(v) and math.isfinite(s)) or s < 0.0:
+                continue
+            for j in range(4):
+                f[j] = sign[k] * edges[k, j]
+            u = sign[k] * v
+            m = margins[k]
+            if _count_past(u + z * s, f, m, 0.0) - _count_past(u - z * s, f, m, 0.0) > 1:
+                continue
+            b = band[r, k]
+            if b < 0:
+                b = _count_past(u, f, m, 0.0)
+            else:
+                b = min(max(b, _count_past(u, f, m, 1.0)), _count_past(u, f, m, -1.0))
+            band[r, k] = b
+            grades[r, k] = b
+            n_placed += 1
+            if b > level[r]:
+                level[r] = b
+        if level[r] < 0:
+            continue
+        p_le = 1.0
+        p_lt = 1.0
+        for k in range(n_g):
+            if grades[r, k] < 0:
+                continue
+            for j in range(4):
+                f[j] = sign[k] * edges[k, j]
+            u = sign[k] * values[r, index[k]]
+            s = std_errors[r, index[k]]
+            p_le *= _p_at_most(level[r], u, s, f)
+            p_lt *= _p_at_most(level[r] - 1, u, s, f)
+        confidence[r] = min(max(p_le - p_lt, 0.0), 1.0) * n_placed / n_g
+    return level, grades, confidence
+
+
+@dataclass(frozen=True)
+class GradeResult:
+    """Grade of one rig at one sample: level 0..4 (-1 unknown), its name, per-parameter levels
+    (-1 not placed) by bus name, and confidence in [0, 1]."""
+
+    level: int
+    grade: str
+    param_levels: dict[str, int]
+    confidence: float
+
+    @property
+    def param_grades(self) -> dict[str, str]:
+        """Per-parameter grade names (``"unknown"`` where not placed), as in the Health payload."""
+        return {k: grade_name(v) for k, v in self.param_levels.items()}
+
+
+@dataclass(frozen=True)
+class BatchGradeResult:
+    """Grades of many rigs: level (n_rigs,), param_levels (n_rigs, n_graded) in ``names``
+    order, confidence (n_rigs,)."""
+
+    names: tuple[str, ...]
+    level: np.ndarray
+    param_levels: np.ndarray
+    confidence: np.ndarray
+
+    def rig(self, i: int) -> GradeResult:
+        lv = int(self.level[i])
+        return GradeResult(lv, grade_name(lv),
+                           {n: int(g) for n, g in zip(self.names, self.param_levels[i])},
+                           float(self.confidence[i]))
+
+
+def _vector(x, n_rigs: int, what: str) -> np.ndarray:
+    """(n_rigs, n_params) float64 from an array, or for one rig a name -> value mapping
+    (missing names are NaN: not placed)."""
+    if isinstance(x, Mapping):
+        bad = [k for k in x if k not in PARAM_NAMES]
+        if bad:
+            raise ValueError(f"{what}: unknown parameter name(s) {bad}")
+        x = [float(x.get(n, math.nan)) for n in PARAM_NAMES]
+    a = np.array(x, dtype=np.float64)
+    if n_rigs == 1 and a.ndim == 1:
+        a = a[None, :]
+    if a.shape != (n_rigs, len(PARAM_NAMES)):
+        raise ValueError(f"{what} has shape {a.shape}, expected ({n_rigs}, {len(PARAM_NAMES)})")
+    return a
+
+
+class BatchGrader:
+    """Grades many rigs together (state: ``band``, (n_rigs, n_graded) int64).
+
+    Parameters
+    ----------
+    n_rigs : int
+        Number of rigs.
+    ranges : Ranges, optional
+        Health ranges; Table 3 by default.
+    z : float
+        Gating half-width in standard errors [-].
+    margin : float
+        Hysteresis margin as a fraction of the edge value [-], capped per edge (module doc).
+    """
+
+    def __init__(self, n_rigs: int, ranges: Ranges | None = None, z: float = 2.0,
+                 margin: float = 0.02):
+        if not (isinstance(n_rigs, int) and n_rigs >= 1):
+            raise ValueError(f"n_rigs={n_rigs!r} must be an integer >= 1")
+        if not (math.isfinite(z) and z > 0):
+            raise ValueError(f"z={z!r} must be finite and > 0")
+        if not (math.isfinite(margin) and 0 <= margin < 1):
+            raise ValueError(f"margin={margin!r} must be in [0, 1)")
+        self.n_rigs, self.z, self.margin = n_rigs, float(z), float(margin)
+        self.ranges = Ranges.default() if ranges is None else ranges
+        self._arrays = self.ranges.to_arrays(self.margin)
+        self.band = np.full((n_rigs, len(self._arrays.names)), -1, dtype=np.int64)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Graded parameter names, in kernel order."""
+        return self._arrays.names
+
+    def reset(self, rig: int | None = None) -> None:
+        """Forget the hysteresis state of one rig (or all)."""
+        self.band[slice(None) if rig is None else rig] = -1
+
+    def update(self, values, std_errors, converged) -> BatchGradeResult:
+        """Grade one sample of every rig.
+
+        values, std_errors : (n_rigs, n_params) in PARAM_NAMES order [SI]; SE >= 0, inf/NaN
+            means unidentified (not placed). converged : (n_rigs,) bool.
+        """
+        v = _vector(values, self.n_rigs, "values")
+        s = _vector(std_errors, self.n_rigs, "std_errors")
+        neg = np.argwhere(s < 0)
+        if neg.size:
+            r, p = neg[0]
+            raise ValueError(f"std_errors[{r}] of {PARAM_NAMES[p]} = {s[r, p]} is negative")
+        c = np.asarray(converged, dtype=np.bool_).reshape(-1)
+        if c.shape != (self.n_rigs,):
+            raise ValueError(f"converged has shape {c.shape}, expected ({self.n_rigs},)")
+        a = self._arrays
+        level, grades, conf = grade_kernel(v, s, c, a.index, a.sign, a.edges, a.margins,
+                                           self.z, self.band)
+        return BatchGradeResult(a.names, level, grades, conf)
+
+
+class Grader:
+    """Streaming grader of one rig; the batched kernel with n_rigs = 1 (see module docstring).
+
+    Parameters are those of :class:`BatchGrader` without ``n_rigs``.
+    """
+
+    def __init__(self, ranges: Ranges | None = None, z: float = 2.0, margin: float = 0.02):
+        self.ranges, self.z, self.margin = ranges, z, margin
+        self._batch = BatchGrader(1, ranges, z, margin)
+
+    @property
+    def band(self) -> np.ndarray:
+        """Hysteresis state (n_graded,), -1 where no band yet."""
+        return self._batch.band[0]
+
+    def reset(self) -> None:
+        self._batch.reset()
+
+    def update(self, values, std_errors, converged: bool) -> GradeResult:
+        """Grade one sample: values, std_errors (n_params,) in PARAM_NAMES order or mappings by
+        name [SI]; converged: the identifier has converged."""
+        return self._batch.update(values, std_errors, [bool(converged)]).rig(0)
+
+
+def grade_of_values(values: Mapping[str, float], ranges: Ranges | None = None) -> int:
+    """Level 0..4 of TRUE parameter values (no SE, no hysteresis) [SI, by bus name].
+
+    Uses the kernel with zero standard errors and a fresh state; parameters missing from
+    ``values`` are left out. ValueError if a value is not finite or none is graded.
+    """
+    ranges = Ranges.default() if ranges is None else ranges
+    bad = {k: v for k, v in values.items() if not math.isfinite(v)}
+    if bad:
+        raise ValueError(f"true values must be finite: {bad}")
+    if not any(k in ranges.params for k in values):
+        raise ValueError(f"none of {sorted(values)} is graded by the ranges")
+    return Grader(ranges, margin=0.0).update(values, dict.fromkeys(values, 0.0), True).level
