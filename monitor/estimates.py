@@ -1,0 +1,180 @@
+"""Read-out of an identifier state: physical parameters and honest standard errors.
+
+Pure kernels, run when a result is wanted (not on every sample). In PARAM_NAMES order
+(hydromon.contract): m [kg], B_fv [N s/m], f_c [N], K_t [N/m], inv_beta_e [1/Pa],
+CdW_sqrt_rho [m^2.5/kg^0.5], C_ip, C_ep [m^3/(s Pa)], two_zeta_omega [rad/s],
+omega_sv2 [rad^2/s^2], K_sv_omega_sv2 [m/(V s^2)].
+
+Standard errors: sigma^2 kappa P, with sigma^2 the residual variance and kappa the
+long-run variance factor 1 + 2 sum_j w_j rho_j of the residuals (Bartlett weights over
+N_LAGS lags), because filtered residuals are correlated and the plain sigma^2 P would
+overstate the information. Bias compensation (see monitor.identify) carries its
+Jacobian into the covariance. Valve parameters get theirs by the delta method.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .identify import N_PARAMS, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F
+from .layout import (
+    H_BC, H_H, N_LAGS, O_BC, O_NOISE, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_W,
+    O_ROWS, O_TH_C, O_TH_F, O_TH_V,
+)
+
+
+@njit(cache=True)
+def _sigma2_kappa(st, streams, n_par):
+    e2 = 0.0
+    w = 0.0
+    cov = np.zeros(N_LAGS)
+    for s in streams:
+        e2 += st[O_RES_E2 + s]
+        w += st[O_RES_W + s]
+        for j in range(N_LAGS):
+            cov[j] += st[O_RES_COV + s * N_LAGS + j]
+    if w <= n_par + 1 or e2 <= 0.0:
+        return np.inf, 1.0
+    s2 = e2 / (w - n_par)
+    kappa = 1.0
+    for j in range(N_LAGS):
+        kappa += 2.0 * (1.0 - (j + 1.0) / (N_LAGS + 1.0)) * cov[j] / e2
+    kappa = min(max(kappa, 0.25), 2.0 * N_LAGS + 1.0)
+    return s2, kappa
+
+
+@njit(cache=True)
+def _compensate(theta, cov, P, S):
+    """theta_bc = (I - P S)^-1 theta and its covariance; unchanged if the correction is not small."""
+    n = theta.shape[0]
+    PS = P @ S
+    norm = 0.0
+    for i in range(n):
+        for j in range(n):
+            norm += PS[i, j] * PS[i, j]
+    if not (math.sqrt(norm) < 0.5):
+        return theta, cov
+    M = np.eye(n) - PS
+    Mi = np.linalg.inv(M)
+    return Mi @ theta, Mi @ cov @ Mi.T
+
+
+@njit(cache=True)
+def valve_physical(th: np.ndarray, h: float) -> np.ndarray:
+    """[2 zeta omega, omega^2, K_sv omega^2] from ARX [a1, a2, b0, b1, b2] (x5 scaled by X5_NOM)."""
+    out = np.full(3, np.nan)
+    a1, a2 = th[0], th[1]
+    den = 1.0 + a1 + a2
+    disc = a1 * a1 - 4.0 * a2
+    if disc < 0.0:
+        if a2 <= 0.0:
+            return out
+        r = math.sqrt(a2)
+        c = -a1 / (2.0 * r)
+        if abs(c) > 1.0:
+            return out
+        sr = math.log(r) / h
+        wd = math.acos(c) / h
+        w2 = sr * sr + wd * wd
+        tzw = -2.0 * sr
+    else:
+        sq = math.sqrt(disc)
+        za = (-a1 + sq) / 2.0
+        zb = (-a1 - sq) / 2.0
+        if za <= 0.0 or zb <= 0.0:
+            return out
+        sa = math.log(za) / h
+        sb = math.log(zb) / h
+        w2 = sa * sb
+        tzw = -(sa + sb)
+    if den == 0.0:
+        return out
+    k = X5_NOM * (th[2] + th[3] + th[4]) / den
+    out[0] = tzw
+    out[1] = w2
+    out[2] = k * w2
+    return out
+
+
+@njit(cache=True)
+def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarray,
+              params: np.ndarray, se: np.ndarray) -> None:
+    """Write the 11 physical parameters and their standard errors (NaN/inf where unknown)."""
+    params[:] = np.nan
+    se[:] = np.inf
+    bc = hyper[H_BC] > 0.0
+    # force balance
+    if st[O_ROWS] > 4:
+        th = st[O_TH_F:O_TH_F + 4].copy()
+        P = st[O_P_F:O_P_F + 16].reshape((4, 4)).copy()
+        s2, kap = _sigma2_kappa(st, (0,), 4)
+        cov = P * (s2 * kap) if math.isfinite(s2) else P * np.inf
+        if bc:
+            sc = THETA_NOM_F / Y_NOM_F
+            out = (2, 1, -1, 0)
+            S = np.zeros((4, 4))
+            var1 = st[O_NOISE] / 70.0 * st[O_BC]
+            for i in range(4):
+                for j in range(4):
+                    if out[i] >= 0 and out[j] >= 0:
+                        S[i, j] = var1 * sc[i] * sc[j] * g_f[out[i], out[j]]
+            if math.isfinite(s2):
+                th, cov = _compensate(th, cov, P, S)
+            else:
+                th, cov = _compensate(th, P, P, S)
+        for i in range(4):
+            params[i] = th[i] * THETA_NOM_F[i]
+            se[i] = math.sqrt(max(cov[i, i], 0.0)) * THETA_NOM_F[i] if math.isfinite(s2) else np.inf
+    # chambers
+    if st[O_ROWS + 1] > 4:
+        th = st[O_TH_C:O_TH_C + 4].copy()
+        P = st[O_P_C:O_P_C + 16].reshape((4, 4)).copy()
+        s2, kap = _sigma2_kappa(st, (1, 2), 4)
+        fin = math.isfinite(s2)
+        cov = P * (s2 * kap) if fin else P.copy()
+        if bc:
+            sc0 = THETA_NOM_C[0] / Y_NOM_C
+            S = np.zeros((4, 4))
+            S[0, 0] = (st[O_NOISE + 1] * st[O_BC + 1] + st[O_NOISE + 2] * st[O_BC + 2]) / 70.0 \
+                * g_c[1, 1] * sc0 * sc0
+            th, cov = _compensate(th, cov, P, S)
+        for i in range(4):
+            params[4 + i] = th[i] * THETA_NOM_C[i]
+            se[4 + i] = math.sqrt(max(cov[i, i], 0.0)) * THETA_NOM_C[i] if fin else np.inf
+    # valve
+    if st[O_ROWS + 2] > 6:
+        th = st[O_TH_V:O_TH_V + 5].copy()
+        P = st[O_P_V:O_P_V + 25].reshape((5, 5))
+        Ps = 0.5 * (P + P.T)
+        phys = valve_physical(th, hyper[H_H])
+        s2, kap = _sigma2_kappa(st, (3,), 5)
+        for i in range(3):
+            params[8 + i] = phys[i]
+        if math.isfinite(s2) and math.isfinite(phys[0]):
+            J = np.zeros((3, 5))
+            for j in range(5):
+                d = 1e-6 * max(abs(th[j]), 1e-3)
+                tp = th.copy()
+                tm = th.copy()
+                tp[j] += d
+                tm[j] -= d
+                fp = valve_physical(tp, hyper[H_H])
+                fm = valve_physical(tm, hyper[H_H])
+                for i in range(3):
+                    J[i, j] = (fp[i] - fm[i]) / (2.0 * d)
+            C = J @ (Ps * (s2 * kap)) @ J.T
+            for i in range(3):
+                se[8 + i] = math.sqrt(max(C[i, i], 0.0))
+
+
+@njit(cache=True)
+def fleet_estimates(states, hyper, g_f, g_c, rigs, params, se, rows):
+    """Estimates of the listed rigs: params, se (len(rigs), 11), rows (len(rigs), 3)."""
+    for i in range(rigs.shape[0]):
+        r = rigs[i]
+        estimates(states[r], hyper, g_f, g_c, params[i], se[i])
+        for j in range(3):
+            rows[i, j] = states[r, O_ROWS + j]

@@ -1,0 +1,356 @@
+"""Streaming identification of the paper's three models, one sample at a time, many rigs at once.
+
+Our recipe (the paper's literal one is ``monitor.paper_recipe``), chosen by measurement
+(see README "Noise"):
+
+* **Force balance, eq (24)-(27)** and **chambers, eq (28)-(38)**: every signal of an
+  equation goes through the same state-variable filter (``monitor.svf``), so derivatives
+  come from the filter state and never from differencing noisy samples:
+
+      F[A1 x3 - A2 x4 - F_L] = m s^2F[x1] + (B + f_v) sF[x1] + f_c F[sign x2] + K_t F[x1]
+      -A1 sF[x1] = (1/beta_e) {V10 sF[x3] + A1 (sF[x1 x3] - F[x2 x3])} - theta F[x5 z1]
+                   + C_ip F[x3 - x4] + C_ep F[x3]
+      A2 sF[x1]  = (1/beta_e) {V20 sF[x4] - A2 (sF[x1 x4] - F[x2 x4])} + theta F[x5 z2]
+                   - C_ip F[x3 - x4] + C_ep F[x4]
+
+  using (V10 + A1 x1) x3' = V10 x3' + A1 ((x1 x3)' - x2 x3). sign(x2) and x2 x3 take the
+  velocity from a centred quadratic (Savitzky-Golay) fit over 2*SG_HALF+1 samples, so all
+  rows refer to the instant SG_HALF samples back: every target and regressor of a row is
+  aligned to the same instant.
+  The pressure-rate regressor still carries filtered-differentiated sensor noise, which
+  biases least squares toward zero (errors in variables: -0.5 % on 1/beta_e, C_d W/sqrt(rho)
+  and C_ip at realistic noise). Bias compensation removes it: with S the accumulated
+  covariance of the regressor noise (known from the filter's impulse response and the
+  channel noise variance, itself estimated online from 4th differences),
+  theta_bc = (R - S)^-1 r = (I - P S)^-1 theta.
+* **Servo valve, eq (39)-(42)**: the paper's form ``-x6' = ...`` puts the noisiest second
+  derivative in the target. We identify instead the exact discrete-time model of the
+  2nd-order valve, x5(k) = -a1 x5(k-1) - a2 x5(k-2) + b0 du(k) + b1 du(k-1) + b2 du(k-2)
+  (exact for piecewise-linear du), with recursive instrumental variables whose
+  instruments come from an auxiliary model driven by du alone (Young's RIV), so sensor
+  noise on x5 does not bias it. The poles map exactly to the continuous ones
+  (z = exp(s h)): omega^2 = s1 s2, 2 zeta omega = -(s1 + s2); the DC gain is K_sv.
+  Rows whose window spans a step in ug are skipped (no finite model follows a jump
+  between samples).
+
+All kernels are pure and work on one rig's flat state row (``monitor.layout``); the
+fleet kernel loops over a batch of samples in arrival order.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from pydantic import BaseModel, ConfigDict, Field
+
+from plant_sim.model import orifice_z
+from plant_sim.params import RigConfig
+
+from .layout import (
+    C_A1, C_A2, C_FL, C_KF, C_KP, C_PS, C_V10, C_V20, H_BC, H_H, H_IV, H_IV_START, H_LAM,
+    H_NOISE_N, H_P0, H_PMAX, H_STEP_TOL, H_WARM, HYPER_SIZE, N_CH, N_LAGS, N_STREAMS,
+    O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_HIST,
+    O_RES_W, O_RING, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
+    RING, SG_HALF, STATE_SIZE,
+)
+from .rls import riv_step, rls_step
+from .svf import noise_gram, svf_init, svf_matrices, svf_step
+
+N_PARAMS = 11
+
+# Nominal magnitudes: regressors are scaled so every RLS parameter is O(1).
+THETA_NOM_F = np.array([100.0, 1e4, 10.0, 1e6])  # m [kg], B+f_v [N s/m], f_c [N], K_t [N/m]
+Y_NOM_F = 1e4  # [N]
+THETA_NOM_C = np.array([1e-9, 1e-3, 1e-11, 1e-11])  # 1/beta [1/Pa], theta, C_ip, C_ep
+Y_NOM_C = 1e-3  # [m^3/s]
+X5_NOM = 1e-4  # [m]
+
+
+class IdentOptions(BaseModel):
+    """Hyperparameters of the identifier (shared by a fleet).
+
+    Attributes
+    ----------
+    a_force, a_chamber : float
+        SVF bandwidths [rad/s] of the force and chamber equations.
+    lam : float
+        Forgetting factor per sample (1 = growing window; 0.9995 ~ 20 s memory at 100 Hz).
+    warmup : float
+        Filter settling time before rows are used [s].
+    step_tol : float
+        |second difference of ug| [V] above which a valve row is skipped as a step.
+    bias_compensation, instrumental_variables : bool
+        Our noise fixes (off = plain least squares on the same filtered rows).
+    iv_start : int
+        Valve rows of plain least squares before the IV takes over.
+    p0, p_max : float
+        Initial covariance (a weak prior) and anti-windup trace bound, scaled units.
+    noise_window : int
+        Samples averaged by the online sensor-noise estimate.
+    min_rows : int
+        Rows every equation needs before the estimate counts as converged.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    a_force: float = Field(40.0, gt=0)
+    a_chamber: float = Field(25.0, gt=0)
+    lam: float = Field(1.0, gt=0, le=1)
+    warmup: float = Field(0.4, ge=0)
+    step_tol: float = Field(0.1, gt=0)
+    bias_compensation: bool = True
+    instrumental_variables: bool = True
+    iv_start: int = Field(100, ge=10)
+    p0: float = Field(1e6, gt=0)
+    p_max: float = Field(1e10, gt=0)
+    noise_window: int = Field(2000, ge=10)
+    min_rows: int = Field(300, ge=1)
+
+
+class Kernels:
+    """Fleet-wide constant arrays derived from the options and sample period h [s]."""
+
+    def __init__(self, options: IdentOptions, h: float):
+        self.options = options
+        self.h = h
+        self.m_f = svf_matrices(options.a_force, h)
+        self.m_c = svf_matrices(options.a_chamber, h)
+        self.g_f = noise_gram(self.m_f)
+        self.g_c = noise_gram(self.m_c)
+        hy = np.zeros(HYPER_SIZE)
+        hy[H_H] = h
+        hy[H_LAM] = options.lam
+        hy[H_WARM] = math.ceil(options.warmup / h)
+        hy[H_STEP_TOL] = options.step_tol
+        hy[H_BC] = 1.0 if options.bias_compensation else 0.0
+        hy[H_IV] = 1.0 if options.instrumental_variables else 0.0
+        hy[H_IV_START] = options.iv_start
+        hy[H_P0] = options.p0
+        hy[H_PMAX] = options.p_max
+        hy[H_NOISE_N] = options.noise_window
+        self.hyper = hy
+
+
+def rig_constants(config: RigConfig) -> np.ndarray:
+    """The per-rig constant row (SI) of ``monitor.layout``."""
+    c = np.empty(RIG_CONST_SIZE)
+    c[C_A1], c[C_A2], c[C_V10], c[C_V20] = config.A1, config.A2, config.V10, config.V20
+    c[C_PS], c[C_FL], c[C_KP], c[C_KF] = config.p_s, config.F_L, config.K_p, config.K_f
+    return c
+
+
+def new_state(hyper: np.ndarray) -> np.ndarray:
+    """A fresh rig state row: no samples, weak prior P0 = p0 I."""
+    st = np.zeros(STATE_SIZE)
+    reset_estimates(st, hyper)
+    return st
+
+
+@njit(cache=True)
+def reset_estimates(st: np.ndarray, hyper: np.ndarray) -> None:
+    """Forget all estimates (theta = 0, P = p0 I) and statistics; keeps nothing."""
+    st[:] = 0.0
+    p0 = hyper[H_P0]
+    for i in range(4):
+        st[O_P_F + 5 * i] = p0
+        st[O_P_C + 5 * i] = p0
+    for i in range(5):
+        st[O_P_V + 6 * i] = p0
+
+
+@njit(cache=True)
+def reset_signals(st: np.ndarray) -> None:
+    """Restart the signal path (after a gap): filters re-initialise, estimates are kept."""
+    st[O_N] = 0.0
+
+
+@njit(cache=True)
+def _ring(st, n, lag, ch):
+    # value of channel ch, `lag` samples before sample n (n = index of the newest)
+    return st[O_RING + ((n - lag) % RING) * N_CH + ch]
+
+
+@njit(cache=True)
+def _residual_stats(st, stream, e, lam):
+    w = O_RES_W + stream
+    st[w] = lam * st[w] + 1.0
+    st[O_RES_E2 + stream] = lam * st[O_RES_E2 + stream] + e * e
+    hb = O_RES_HIST + stream * N_LAGS
+    cb = O_RES_COV + stream * N_LAGS
+    for j in range(N_LAGS):
+        st[cb + j] = lam * st[cb + j] + e * st[hb + j]
+    for j in range(N_LAGS - 1, 0, -1):
+        st[hb + j] = st[hb + j - 1]
+    st[hb] = e
+
+
+@njit(cache=True)
+def _noise_update(st, n, hyper):
+    # running mean of squared 4th differences: white noise of variance s^2 gives 70 s^2
+    if n < 4:
+        return
+    cnt = st[O_NOISE_N] + 1.0
+    st[O_NOISE_N] = cnt
+    w = 1.0 / min(cnt, hyper[H_NOISE_N])
+    for c in range(4):
+        ch = c + 1
+        d4 = (_ring(st, n, 0, ch) - 4.0 * _ring(st, n, 1, ch) + 6.0 * _ring(st, n, 2, ch)
+              - 4.0 * _ring(st, n, 3, ch) + _ring(st, n, 4, ch))
+        v = d4 * d4
+        cur = st[O_NOISE + c]
+        if cnt > 50.0 and v > 100.0 * cur:
+            v = 100.0 * cur  # a transient, not noise
+        st[O_NOISE + c] = cur + w * (v - cur)
+
+
+@njit(cache=True)
+def _valve_row(st, rc, hyper, n, phi, z):
+    """Valve ARX(2,3) row at the newest sample n (needs n >= 2)."""
+    kp, kf = rc[C_KP], rc[C_KF]
+    du0 = kp * (_ring(st, n, 0, 0) - kf * _ring(st, n, 0, 1))
+    du1 = kp * (_ring(st, n, 1, 0) - kf * _ring(st, n, 1, 1))
+    du2 = kp * (_ring(st, n, 2, 0) - kf * _ring(st, n, 2, 1))
+    y = _ring(st, n, 0, 4) / X5_NOM
+    phi[0] = -_ring(st, n, 1, 4) / X5_NOM
+    phi[1] = -_ring(st, n, 2, 4) / X5_NOM
+    phi[2] = du0
+    phi[3] = du1
+    phi[4] = du2
+    th = st[O_TH_V:O_TH_V + 5]
+    # auxiliary model: simulate x5 from du alone with the current estimate
+    xh1, xh2 = st[O_XH], st[O_XH + 1]
+    a1, a2 = th[0], th[1]
+    stable = abs(a2) < 1.0 and abs(a1) < 1.0 + a2
+    rows_v = st[O_ROWS + 2]
+    use_iv = hyper[H_IV] > 0.0 and rows_v >= hyper[H_IV_START] and stable
+    if use_iv:
+        z[0] = -xh1
+        z[1] = -xh2
+    else:
+        z[0] = phi[0]
+        z[1] = phi[1]
+        xh1, xh2 = -phi[0], -phi[1]
+    z[2], z[3], z[4] = du0, du1, du2
+    xh = -a1 * xh1 - a2 * xh2 + th[2] * du0 + th[3] * du1 + th[4] * du2
+    if not (use_iv and math.isfinite(xh)):
+        xh = y
+    st[O_XH + 1] = xh1
+    st[O_XH] = xh
+    step = abs(_ring(st, n, 0, 0) - 2.0 * _ring(st, n, 1, 0) + _ring(st, n, 2, 0)) > hyper[H_STEP_TOL]
+    return y, step
+
+
+@njit(cache=True)
+def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
+                  ug: float, x1: float, x3: float, x4: float, x5: float) -> None:
+    """Consume one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place."""
+    n = int(st[O_N])
+    base = O_RING + (n % RING) * N_CH
+    st[base], st[base + 1], st[base + 2], st[base + 3], st[base + 4] = ug, x1, x3, x4, x5
+    st[O_N] = n + 1
+    lam = hyper[H_LAM]
+    pmax = hyper[H_PMAX]
+    _noise_update(st, n, hyper)
+
+    phi5 = np.empty(5)
+    z5 = np.empty(5)
+    if n >= 2:
+        y, step = _valve_row(st, rc, hyper, n, phi5, z5)
+        if not step:
+            th = st[O_TH_V:O_TH_V + 5]
+            P = st[O_P_V:O_P_V + 25].reshape((5, 5))
+            e = riv_step(th, P, phi5, z5, y, lam, pmax)
+            if math.isfinite(e):
+                st[O_ROWS + 2] += 1.0
+                _residual_stats(st, 3, y - phi5 @ th, lam)
+
+    if n < 2 * SG_HALF:
+        return
+    # the delayed instant c = n - SG_HALF: centred velocity and aligned signals
+    num = 0.0
+    den = 0.0
+    for j in range(-SG_HALF, SG_HALF + 1):
+        num += j * _ring(st, n, SG_HALF - j, 1)
+        den += j * j
+    v = num / (den * hyper[H_H])
+    c1 = _ring(st, n, SG_HALF, 1)
+    c3 = _ring(st, n, SG_HALF, 2)
+    c4 = _ring(st, n, SG_HALF, 3)
+    c5 = _ring(st, n, SG_HALF, 4)
+    a1, a2 = rc[C_A1], rc[C_A2]
+    q1 = a1 * c3 - a2 * c4 - rc[C_FL]
+    sg = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
+    z1, z2 = orifice_z(c5, c3, c4, rc[C_PS])
+    inputs_f = (c1, q1, sg)
+    inputs_c = (c1, c3, c4, c1 * c3, c1 * c4, v * c3, v * c4, c5 * z1, c5 * z2)
+    if n == 2 * SG_HALF:
+        for i in range(3):
+            svf_init(m_f, st[O_SVF_F + 3 * i:O_SVF_F + 3 * i + 3], inputs_f[i])
+        for i in range(9):
+            svf_init(m_c, st[O_SVF_C + 3 * i:O_SVF_C + 3 * i + 3], inputs_c[i])
+    yf = np.empty((3, 3))
+    yc = np.empty((9, 3))
+    for i in range(3):
+        svf_step(m_f, st[O_SVF_F + 3 * i:O_SVF_F + 3 * i + 3], inputs_f[i], yf[i])
+    for i in range(9):
+        svf_step(m_c, st[O_SVF_C + 3 * i:O_SVF_C + 3 * i + 3], inputs_c[i], yc[i])
+    if n - 2 * SG_HALF < hyper[H_WARM]:
+        return
+
+    # force balance row
+    phi = np.empty(4)
+    phi[0] = yf[0, 2] * THETA_NOM_F[0] / Y_NOM_F
+    phi[1] = yf[0, 1] * THETA_NOM_F[1] / Y_NOM_F
+    phi[2] = yf[2, 0] * THETA_NOM_F[2] / Y_NOM_F
+    phi[3] = yf[0, 0] * THETA_NOM_F[3] / Y_NOM_F
+    yv = yf[1, 0] / Y_NOM_F
+    th = st[O_TH_F:O_TH_F + 4]
+    P = st[O_P_F:O_P_F + 16].reshape((4, 4))
+    e = rls_step(th, P, phi, yv, lam, pmax)
+    if math.isfinite(e):
+        st[O_ROWS] += 1.0
+        st[O_BC] = lam * st[O_BC] + 1.0
+        _residual_stats(st, 0, yv - phi @ th, lam)
+
+    # chamber rows (two per sample, each forgetting by sqrt(lam))
+    lam2 = math.sqrt(lam)
+    v1 = rc[C_V10] + a1 * c1
+    v2 = rc[C_V20] - a2 * c1
+    th = st[O_TH_C:O_TH_C + 4]
+    P = st[O_P_C:O_P_C + 16].reshape((4, 4))
+    s1 = THETA_NOM_C / Y_NOM_C
+    dp = yc[1, 0] - yc[2, 0]
+    phi[0] = (rc[C_V10] * yc[1, 1] + a1 * (yc[3, 1] - yc[5, 0])) * s1[0]
+    phi[1] = -yc[7, 0] * s1[1]
+    phi[2] = dp * s1[2]
+    phi[3] = yc[1, 0] * s1[3]
+    yv = -a1 * yc[0, 1] / Y_NOM_C
+    e = rls_step(th, P, phi, yv, lam2, pmax)
+    ok = math.isfinite(e)
+    if ok:
+        st[O_BC + 1] = lam2 * st[O_BC + 1] + v1 * v1
+        st[O_BC + 2] = lam2 * st[O_BC + 2]
+        _residual_stats(st, 1, yv - phi @ th, lam2)
+    phi[0] = (rc[C_V20] * yc[2, 1] - a2 * (yc[4, 1] - yc[6, 0])) * s1[0]
+    phi[1] = yc[8, 0] * s1[1]
+    phi[2] = -dp * s1[2]
+    phi[3] = yc[2, 0] * s1[3]
+    yv = a2 * yc[0, 1] / Y_NOM_C
+    e = rls_step(th, P, phi, yv, lam2, pmax)
+    if ok and math.isfinite(e):
+        st[O_ROWS + 1] += 1.0
+        st[O_BC + 1] = lam2 * st[O_BC + 1]
+        st[O_BC + 2] = lam2 * st[O_BC + 2] + v2 * v2
+        _residual_stats(st, 2, yv - phi @ th, lam2)
+
+
+@njit(cache=True)
+def fleet_step(states: np.ndarray, consts: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
+               rig: np.ndarray, samples: np.ndarray) -> None:
+    """Consume a batch of samples in arrival order: sample i (ug, x1, x3, x4, x5) belongs to rig[i]."""
+    for i in range(rig.shape[0]):
+        r = rig[i]
+        identify_step(states[r], consts[r], hyper, m_f, m_c,
+                      samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4])

@@ -1,0 +1,68 @@
+"""Flat per-rig state layout of the identifier: one float64 row per rig.
+
+A fleet's whole estimator state is one 2-D array ``(n_rigs, STATE_SIZE)``: it batches,
+pickles and checkpoints as plain numbers. The ``O_*`` offsets are module constants so the
+compiled kernels see them as literals.
+"""
+
+from __future__ import annotations
+
+SG_HALF = 3  # half-width of the centred velocity window [samples]
+RING = 2 * SG_HALF + 1
+N_CH = 5  # ug, x1, x3, x4, x5
+N_LAGS = 8  # residual autocorrelation lags used for honest standard errors
+N_STREAMS = 4  # residual streams: force, chamber 1, chamber 2, valve
+N_FORCE_SVF = 3  # x1, Q1, sign(v)
+N_CH_SVF = 9  # x1, x3, x4, x1*x3, x1*x4, v*x3, v*x4, x5*z1, x5*z2
+
+_FIELDS = [
+    ("N", 1),  # samples since the last signal reset
+    ("RING", RING * N_CH),
+    ("SVF_F", N_FORCE_SVF * 3),
+    ("SVF_C", N_CH_SVF * 3),
+    ("TH_F", 4), ("P_F", 16),
+    ("TH_C", 4), ("P_C", 16),
+    ("TH_V", 5), ("P_V", 25),
+    ("XH", 2),  # auxiliary model output x5_hat(k-1), x5_hat(k-2) [scaled]
+    ("ROWS", 3),  # rows taken by force, chamber, valve
+    ("NOISE", 4),  # running mean of squared 4th differences of x1, x3, x4, x5
+    ("NOISE_N", 1),
+    ("BC", 3),  # force weight sum, chamber sum of V1^2, sum of V2^2 (forgetting-weighted)
+    ("RES_W", N_STREAMS), ("RES_E2", N_STREAMS),
+    ("RES_HIST", N_STREAMS * N_LAGS), ("RES_COV", N_STREAMS * N_LAGS),
+]
+
+OFFSETS: dict[str, tuple[int, int]] = {}
+_o = 0
+for _name, _size in _FIELDS:
+    OFFSETS[_name] = (_o, _size)
+    _o += _size
+STATE_SIZE = _o
+
+O_N = OFFSETS["N"][0]
+O_RING = OFFSETS["RING"][0]
+O_SVF_F = OFFSETS["SVF_F"][0]
+O_SVF_C = OFFSETS["SVF_C"][0]
+O_TH_F = OFFSETS["TH_F"][0]
+O_P_F = OFFSETS["P_F"][0]
+O_TH_C = OFFSETS["TH_C"][0]
+O_P_C = OFFSETS["P_C"][0]
+O_TH_V = OFFSETS["TH_V"][0]
+O_P_V = OFFSETS["P_V"][0]
+O_XH = OFFSETS["XH"][0]
+O_ROWS = OFFSETS["ROWS"][0]
+O_NOISE = OFFSETS["NOISE"][0]
+O_NOISE_N = OFFSETS["NOISE_N"][0]
+O_BC = OFFSETS["BC"][0]
+O_RES_W = OFFSETS["RES_W"][0]
+O_RES_E2 = OFFSETS["RES_E2"][0]
+O_RES_HIST = OFFSETS["RES_HIST"][0]
+O_RES_COV = OFFSETS["RES_COV"][0]
+
+# Per-rig constants row (SI): the rig config the equations need.
+(C_A1, C_A2, C_V10, C_V20, C_PS, C_FL, C_KP, C_KF) = range(8)
+RIG_CONST_SIZE = 8
+
+# Hyperparameter row shared by a fleet (see identify.IdentOptions).
+(H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N) = range(10)
+HYPER_SIZE = 10

@@ -1,0 +1,288 @@
+"""The per-rig pipeline (sample in; estimates and grade out), for one rig or a fleet.
+
+``Fleet`` holds every rig's state as rows of a few arrays and runs one compiled call per
+batch of arrivals: identification (monitor.identify), then, every ``eval_every`` samples
+of a rig (counted on that rig's samples, so results never depend on how arrivals were
+batched), read-out (monitor.estimates) and grading (monitor.grading). ``Pipeline`` is a
+fleet of one; both run the same kernels, and a test pins them equal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from hydromon.contract import GRADES, PARAM_NAMES
+from plant_sim.params import RigConfig
+
+from .estimates import estimates
+from .grading import Ranges, grade_kernel
+from .identify import IdentOptions, Kernels, fleet_step, new_state, reset_signals, rig_constants
+from .layout import O_ROWS, STATE_SIZE
+
+N_P = len(PARAM_NAMES)
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """One evaluation of one rig.
+
+    Attributes
+    ----------
+    count : int
+        Samples the rig had consumed when evaluated.
+    level : int
+        0 (health) .. 4 (fault); -1 unknown.
+    confidence : float
+        [0, 1], see monitor.grading.
+    params, std_errors : dict
+        By PARAM_NAMES, SI.
+    param_levels : dict
+        Graded parameters' levels (-1 = not placed).
+    converged : bool
+    """
+
+    count: int
+    level: int
+    confidence: float
+    params: dict
+    std_errors: dict
+    param_levels: dict
+    converged: bool
+
+    @property
+    def grade(self) -> str:
+        return GRADES[self.level] if self.level >= 0 else "unknown"
+
+    @property
+    def param_grades(self) -> dict:
+        return {k: (GRADES[v] if v >= 0 else "unknown") for k, v in self.param_levels.items()}
+
+
+@njit(cache=True)
+def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
+                  index, sign, edges, margins, z, rig, samples,
+                  ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv):
+    """Identify a batch of samples; evaluate and grade rigs at their evaluation points.
+
+    Returns the number of evaluation events written into the ``ev_*`` arrays (sized by the
+    caller to len(samples) // eval_every + number of rigs).
+    """
+    n_ev = 0
+    one_rig = np.zeros(1, dtype=np.int64)
+    p = np.empty((1, ev_params.shape[1]))
+    s = np.empty((1, ev_params.shape[1]))
+    conv = np.zeros(1, dtype=np.bool_)
+    for i in range(rig.shape[0]):
+        r = rig[i]
+        one_rig[0] = r
+        fleet_step(states, consts, hyper, m_f, m_c, rig[i:i + 1], samples[i:i + 1])
+        counts[r] += 1
+        if counts[r] % eval_every != 0:
+            continue
+        estimates(states[r], hyper, g_f, g_c, p[0], s[0])
+        conv[0] = (states[r, O_ROWS] >= min_rows and states[r, O_ROWS + 1] >= min_rows
+                   and states[r, O_ROWS + 2] >= min_rows)
+        level, grades, confidence = grade_kernel(p, s, conv, index, sign, edges, margins, z,
+                                                 bands[r:r + 1])
+        ev_rig[n_ev] = r
+        ev_sample[n_ev] = i
+        ev_count[n_ev] = counts[r]
+        ev_level[n_ev] = level[0]
+        ev_conf[n_ev] = confidence[0]
+        ev_params[n_ev] = p[0]
+        ev_se[n_ev] = s[0]
+        ev_grades[n_ev] = grades[0]
+        ev_conv[n_ev] = conv[0]
+        n_ev += 1
+    return n_ev
+
+
+@dataclass(frozen=True)
+class Events:
+    """Evaluations produced by one ``Fleet.update`` (arrays, one row per event)."""
+
+    rig: np.ndarray
+    sample: np.ndarray  # index of the sample in the batch after which the rig was evaluated
+    level: np.ndarray
+    confidence: np.ndarray
+    params: np.ndarray
+    std_errors: np.ndarray
+    grades: np.ndarray
+    converged: np.ndarray
+    counts: np.ndarray  # the rig's sample count at the event
+
+    def __len__(self) -> int:
+        return len(self.rig)
+
+    def assessment(self, i: int, graded: tuple) -> Assessment:
+        return Assessment(
+            count=int(self.counts[i]), level=int(self.level[i]), confidence=float(self.confidence[i]),
+            params=dict(zip(PARAM_NAMES, map(float, self.params[i]))),
+            std_errors=dict(zip(PARAM_NAMES, map(float, self.std_errors[i]))),
+            param_levels=dict(zip(graded, map(int, self.grades[i]))), converged=bool(self.converged[i]),
+        )
+
+
+class Fleet:
+    """Many rigs, one state array each, updated together.
+
+    Parameters
+    ----------
+    options : IdentOptions
+        Identifier hyperparameters (shared).
+    ranges : Ranges
+        Health ranges (default: the paper's Table 3).
+    sample_rate : float
+        Sample rate of every rig [Hz].
+    eval_every : int
+        Evaluate and grade a rig every this many of its samples.
+    grade_z, grade_margin : float
+        Grading's SE gate [standard errors] and hysteresis margin [fraction].
+    """
+
+    def __init__(self, options: IdentOptions | None = None, ranges: Ranges | None = None,
+                 sample_rate: float = 100.0, eval_every: int = 10, grade_z: float = 2.0,
+                 grade_margin: float = 0.02, capacity: int = 16):
+        if eval_every < 1:
+            raise ValueError(f"eval_every must be >= 1, got {eval_every}")
+        self.options = options or IdentOptions()
+        self.ranges = ranges or Ranges.default()
+        self.sample_rate = float(sample_rate)
+        self.eval_every = int(eval_every)
+        self.grade_z = float(grade_z)
+        self.grade_margin = float(grade_margin)
+        self._k = Kernels(self.options, 1.0 / self.sample_rate)
+        self._ra = self.ranges.to_arrays(grade_margin)
+        self.ids: list[str] = []
+        self.index: dict[str, int] = {}
+        capacity = max(1, capacity)
+        self.states = np.zeros((capacity, STATE_SIZE))
+        self.consts = np.zeros((capacity, 8))
+        self.counts = np.zeros(capacity, dtype=np.int64)
+        self.bands = np.full((capacity, len(self._ra.index)), -1, dtype=np.int64)
+
+    @property
+    def graded(self) -> tuple:
+        return self._ra.names
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def add_rig(self, rig_id: str, config: RigConfig | None = None) -> int:
+        """Register a rig (its constants from ``config``); returns its row index."""
+        if rig_id in self.index:
+            raise ValueError(f"rig {rig_id!r} already in the fleet")
+        config = config or RigConfig()
+        if abs(config.sample_rate - self.sample_rate) > 1e-9:
+            raise ValueError(f"rig {rig_id!r} samples at {config.sample_rate} Hz; the fleet runs at {self.sample_rate} Hz")
+        i = len(self.ids)
+        if i == self.states.shape[0]:
+            self._grow()
+        self.ids.append(rig_id)
+        self.index[rig_id] = i
+        self.states[i] = new_state(self._k.hyper)
+        self.consts[i] = rig_constants(config)
+        self.counts[i] = 0
+        self.bands[i] = -1
+        return i
+
+    def _grow(self) -> None:
+        n = self.states.shape[0] * 2
+        self.states = np.vstack([self.states, np.zeros_like(self.states)])[:n]
+        self.consts = np.vstack([self.consts, np.zeros_like(self.consts)])[:n]
+        self.counts = np.concatenate([self.counts, np.zeros_like(self.counts)])[:n]
+        self.bands = np.vstack([self.bands, np.full_like(self.bands, -1)])[:n]
+
+    def set_config(self, rig: int, config: RigConfig) -> None:
+        """New rig constants; the estimates restart (they were identified against the old ones)."""
+        self.consts[rig] = rig_constants(config)
+        self.reset(rig)
+
+    def reset(self, rig: int) -> None:
+        """Forget everything about one rig."""
+        self.states[rig] = new_state(self._k.hyper)
+        self.counts[rig] = 0
+        self.bands[rig] = -1
+
+    def reset_signals(self, rig: int) -> None:
+        """Restart one rig's filters after a gap in its samples; the estimates carry on."""
+        reset_signals(self.states[rig])
+
+    def update(self, rig: np.ndarray, samples: np.ndarray) -> Events:
+        """Consume samples (m, 5) = ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m] of rigs ``rig`` (m,).
+
+        The caller validates samples (finite, SI); rows are consumed in the given order.
+        """
+        rig = np.ascontiguousarray(rig, dtype=np.int64)
+        samples = np.ascontiguousarray(samples, dtype=np.float64)
+        if samples.ndim != 2 or samples.shape[1] != 5 or rig.shape != (samples.shape[0],):
+            raise ValueError(f"need rig (m,) and samples (m, 5), got {rig.shape} and {samples.shape}")
+        if len(rig) and (rig.min() < 0 or rig.max() >= len(self.ids)):
+            raise ValueError("rig index out of range")
+        cap = len(rig) // self.eval_every + len(self.ids) + 1
+        ng = len(self._ra.index)
+        ev = dict(
+            rig=np.empty(cap, np.int64), sample=np.empty(cap, np.int64), counts=np.empty(cap, np.int64),
+            level=np.empty(cap, np.int64),
+            confidence=np.empty(cap), params=np.empty((cap, N_P)), std_errors=np.empty((cap, N_P)),
+            grades=np.empty((cap, ng), np.int64), converged=np.empty(cap, np.bool_),
+        )
+        k, ra = self._k, self._ra
+        n = pipeline_step(self.states, self.consts, self.counts, self.bands, k.hyper, k.m_f, k.m_c,
+                          k.g_f, k.g_c, float(self.options.min_rows), self.eval_every, ra.index, ra.sign,
+                          ra.edges, ra.margins, self.grade_z, rig, samples, ev["rig"], ev["sample"],
+                          ev["counts"], ev["level"], ev["confidence"], ev["params"], ev["std_errors"], ev["grades"],
+                          ev["converged"])
+        return Events(**{key: v[:n] for key, v in ev.items()})
+
+    def estimate(self, rig: int) -> Assessment:
+        """Evaluate one rig now (does not move its hysteresis state)."""
+        p = np.empty((1, N_P))
+        s = np.empty((1, N_P))
+        k, ra = self._k, self._ra
+        estimates(self.states[rig], k.hyper, k.g_f, k.g_c, p[0], s[0])
+        rows = self.states[rig, O_ROWS:O_ROWS + 3]
+        conv = np.array([bool(np.all(rows >= self.options.min_rows))])
+        band = self.bands[rig:rig + 1].copy()
+        level, grades, conf = grade_kernel(p, s, conv, ra.index, ra.sign, ra.edges, ra.margins,
+                                           self.grade_z, band)
+        return Assessment(
+            count=int(self.counts[rig]), level=int(level[0]), confidence=float(conf[0]),
+            params=dict(zip(PARAM_NAMES, map(float, p[0]))),
+            std_errors=dict(zip(PARAM_NAMES, map(float, s[0]))),
+            param_levels=dict(zip(ra.names, map(int, grades[0]))), converged=bool(conv[0]),
+        )
+
+
+class Pipeline:
+    """One rig: ``update(sample) -> Assessment | None`` (an assessment every eval_every samples).
+
+    ``run(samples)`` consumes a whole (N, 5) array at once and returns the last assessment.
+    """
+
+    def __init__(self, config: RigConfig | None = None, options: IdentOptions | None = None,
+                 ranges: Ranges | None = None, eval_every: int = 10, **kw):
+        config = config or RigConfig()
+        self.fleet = Fleet(options, ranges, sample_rate=config.sample_rate, eval_every=eval_every,
+                           capacity=1, **kw)
+        self.fleet.add_rig("rig", config)
+
+    def update(self, sample) -> Assessment | None:
+        s = np.asarray(sample, dtype=float).reshape(1, 5)
+        if not np.all(np.isfinite(s)):
+            raise ValueError(f"non-finite sample {s[0].tolist()}")
+        ev = self.fleet.update(np.zeros(1, np.int64), s)
+        return ev.assessment(0, self.fleet.graded) if len(ev) else None
+
+    def run(self, samples: np.ndarray) -> tuple[Events, Assessment]:
+        samples = np.asarray(samples, dtype=float)
+        if samples.ndim != 2 or samples.shape[1] != 5:
+            raise ValueError(f"samples must be (N, 5): ug, x1, x3, x4, x5; got {samples.shape}")
+        if not np.all(np.isfinite(samples)):
+            bad = int(np.argwhere(~np.isfinite(samples))[0, 0])
+            raise ValueError(f"non-finite value in sample {bad}")
+        ev = self.fleet.update(np.zeros(len(samples), np.int64), samples)
+        return ev, self.fleet.estimate(0)

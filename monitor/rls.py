@@ -1,0 +1,143 @@
+"""Recursive least squares and recursive instrumental variables, as pure kernels.
+
+Paper eqs (46)-(54) with a forgetting factor lam:
+
+    K = P phi / (lam + phi' P phi)
+    theta <- theta + K (y - phi' theta)
+    P <- (P - K phi' P) / lam
+
+Guards (issue 2): P is re-symmetrised after every update; forgetting is skipped while
+trace(P) exceeds ``p_max`` (so P stays bounded with no excitation: no windup); a
+non-finite row is refused, leaving the state untouched. The IV form replaces P phi by
+P z with an instrument z uncorrelated with the noise in phi (Young's recursive IV):
+
+    K = P z / (lam + phi' P z);  theta <- theta + K e;  P <- (P - K phi' P) / lam
+
+Kernels update ``theta`` and ``P`` in place and return the a-priori residual.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _finite_row(phi: np.ndarray, y: float) -> bool:
+    if not math.isfinite(y):
+        return False
+    for v in phi:
+        if not math.isfinite(v):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _forget(P: np.ndarray, lam: float, p_max: float) -> None:
+    n = P.shape[0]
+    tr = 0.0
+    for i in range(n):
+        tr += P[i, i]
+    if lam < 1.0 and tr * (1.0 / lam) <= p_max:
+        inv = 1.0 / lam
+        for i in range(n):
+            for j in range(n):
+                P[i, j] *= inv
+
+
+@njit(cache=True)
+def rls_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float) -> float:
+    """One RLS update (in place). Returns the a-priori residual y - phi' theta (NaN if refused).
+
+    Parameters
+    ----------
+    theta : array (n,)
+    P : array (n, n)
+        Covariance (scaled by the noise variance it is the parameter covariance).
+    phi : array (n,)
+        Regressor row.
+    y : float
+        Target.
+    lam : float
+        Forgetting factor in (0, 1].
+    p_max : float
+        Trace bound beyond which forgetting pauses.
+    """
+    if not _finite_row(phi, y):
+        return np.nan
+    n = theta.shape[0]
+    Pphi = P @ phi
+    denom = lam + phi @ Pphi
+    e = y - phi @ theta
+    for i in range(n):
+        k = Pphi[i] / denom
+        theta[i] += k * e
+        for j in range(n):
+            P[i, j] -= k * Pphi[j]
+    for i in range(n):
+        for j in range(i + 1, n):
+            s = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = s
+            P[j, i] = s
+    _forget(P, lam, p_max)
+    return e
+
+
+@njit(cache=True)
+def riv_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray, y: float, lam: float,
+             p_max: float) -> float:
+    """One recursive-IV update with instrument z (in place). Returns the a-priori residual."""
+    if not (_finite_row(phi, y) and _finite_row(z, 0.0)):
+        return np.nan
+    n = theta.shape[0]
+    Pz = P @ z
+    phiP = phi @ P
+    denom = lam + phi @ Pz
+    if not (abs(denom) > 1e-300):
+        return np.nan
+    e = y - phi @ theta
+    for i in range(n):
+        k = Pz[i] / denom
+        theta[i] += k * e
+        for j in range(n):
+            P[i, j] -= k * phiP[j]
+    _forget(P, lam, p_max)
+    return e
+
+
+class RLS:
+    """Streaming RLS for one linear model y = phi' theta (a thin holder around ``rls_step``).
+
+    Parameters
+    ----------
+    n : int
+        Number of parameters.
+    lam : float
+        Forgetting factor in (0, 1].
+    p0 : float
+        Initial covariance P0 = p0 I (large: a weak prior, not a ridge).
+    p_max : float
+        Trace bound of P (anti-windup).
+    """
+
+    def __init__(self, n: int, lam: float = 1.0, p0: float = 1e8, p_max: float = 1e12):
+        if n < 1:
+            raise ValueError(f"n must be >= 1, got {n}")
+        if not (0 < lam <= 1):
+            raise ValueError(f"lam must lie in (0, 1], got {lam}")
+        if not (p0 > 0 and p_max >= p0 * n):
+            raise ValueError(f"need p0 > 0 and p_max >= n p0, got p0={p0}, p_max={p_max}")
+        self.n, self.lam, self.p0, self.p_max = n, lam, p0, p_max
+        self.theta = np.zeros(n)
+        self.P = np.eye(n) * p0
+
+    def update(self, phi, y) -> np.ndarray:
+        phi = np.asarray(phi, dtype=float)
+        if phi.shape != (self.n,):
+            raise ValueError(f"phi must have shape ({self.n},), got {phi.shape}")
+        if not (np.all(np.isfinite(phi)) and math.isfinite(y)):
+            raise ValueError("non-finite regressor or target")
+        rls_step(self.theta, self.P, phi.copy(), float(y), self.lam, self.p_max)
+        return self.theta.copy()
