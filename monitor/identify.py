@@ -50,9 +50,9 @@ from plant_sim.params import RigConfig
 
 from .layout import (
     C_A1, C_A2, C_FL, C_KF, C_KP, C_PS, C_V10, C_V20, H_BC, H_H, H_IV, H_IV_START, H_LAM,
-    H_NOISE_N, H_P0, H_PMAX, H_STEP_TOL, H_WARM, HYPER_SIZE, N_CH, N_LAGS, N_STREAMS,
+    H_NOISE_N, H_P0, H_VSTICK, H_GUARD, H_PMAX, H_STEP_TOL, H_WARM, HYPER_SIZE, N_CH, N_LAGS, N_STREAMS,
     O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_HIST,
-    O_RES_W, O_RING, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
+    O_RES_W, O_RING, O_SLOW, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
     RING, SG_HALF, STATE_SIZE,
 )
 from .rls import riv_step, rls_step
@@ -91,6 +91,12 @@ class IdentOptions(BaseModel):
         Samples averaged by the online sensor-noise estimate.
     min_rows : int
         Rows every equation needs before the estimate counts as converged.
+    v_stick : float
+        Piston speed [m/s] below which it counts as near rest (a reversal or sticking), where
+        the Coulomb term sign(x2) is not what the friction does; raised to 3 velocity-noise
+        sigmas when the sensor is noisier.
+    reversal_guard : float
+        Time after a near-rest instant whose force rows are skipped [s] (the filter's memory).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -107,6 +113,8 @@ class IdentOptions(BaseModel):
     p_max: float = Field(1e10, gt=0)
     noise_window: int = Field(2000, ge=10)
     min_rows: int = Field(300, ge=1)
+    v_stick: float = Field(2e-3, ge=0)
+    reversal_guard: float = Field(0.1, ge=0)
 
 
 class Kernels:
@@ -130,6 +138,8 @@ class Kernels:
         hy[H_P0] = options.p0
         hy[H_PMAX] = options.p_max
         hy[H_NOISE_N] = options.noise_window
+        hy[H_VSTICK] = options.v_stick
+        hy[H_GUARD] = math.ceil(options.reversal_guard / h)
         self.hyper = hy
 
 
@@ -283,6 +293,11 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     q1 = a1 * c3 - a2 * c4 - rc[C_FL]
     sg = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
     z1, z2 = orifice_z(c5, c3, c4, rc[C_PS])
+    v_noise = 3.0 * math.sqrt(st[O_NOISE] / 70.0 / (den * hyper[H_H] * hyper[H_H]))
+    if abs(v) < max(hyper[H_VSTICK], v_noise):
+        st[O_SLOW] = 0.0
+    else:
+        st[O_SLOW] += 1.0
     inputs_f = (c1, q1, sg)
     inputs_c = (c1, c3, c4, c1 * c3, c1 * c4, v * c3, v * c4, c5 * z1, c5 * z2)
     if n == 2 * SG_HALF:
@@ -299,8 +314,9 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     if n - 2 * SG_HALF < hyper[H_WARM]:
         return
 
-    # force balance row
+    # force balance row, unless a reversal or a stick is inside the filter's memory
     phi = np.empty(4)
+    force_ok = st[O_SLOW] >= hyper[H_GUARD]
     phi[0] = yf[0, 2] * THETA_NOM_F[0] / Y_NOM_F
     phi[1] = yf[0, 1] * THETA_NOM_F[1] / Y_NOM_F
     phi[2] = yf[2, 0] * THETA_NOM_F[2] / Y_NOM_F
@@ -308,7 +324,7 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     yv = yf[1, 0] / Y_NOM_F
     th = st[O_TH_F:O_TH_F + 4]
     P = st[O_P_F:O_P_F + 16].reshape((4, 4))
-    e = rls_step(th, P, phi, yv, lam, pmax)
+    e = rls_step(th, P, phi, yv, lam, pmax) if force_ok else np.nan
     if math.isfinite(e):
         st[O_ROWS] += 1.0
         st[O_BC] = lam * st[O_BC] + 1.0

@@ -27,6 +27,7 @@ _FIELDS = [
     ("ROWS", 3),  # rows taken by force, chamber, valve
     ("NOISE", 4),  # running mean of squared 4th differences of x1, x3, x4, x5
     ("NOISE_N", 1),
+    ("SLOW", 1),  # samples since the piston was last near rest (|v| small)
     ("BC", 3),  # force weight sum, chamber sum of V1^2, sum of V2^2 (forgetting-weighted)
     ("RES_W", N_STREAMS), ("RES_E2", N_STREAMS),
     ("RES_HIST", N_STREAMS * N_LAGS), ("RES_COV", N_STREAMS * N_LAGS),
@@ -53,6 +54,7 @@ O_XH = OFFSETS["XH"][0]
 O_ROWS = OFFSETS["ROWS"][0]
 O_NOISE = OFFSETS["NOISE"][0]
 O_NOISE_N = OFFSETS["NOISE_N"][0]
+O_SLOW = OFFSETS["SLOW"][0]
 O_BC = OFFSETS["BC"][0]
 O_RES_W = OFFSETS["RES_W"][0]
 O_RES_E2 = OFFSETS["RES_E2"][0]
@@ -64,5 +66,5 @@ O_RES_COV = OFFSETS["RES_COV"][0]
 RIG_CONST_SIZE = 8
 
 # Hyperparameter row shared by a fleet (see identify.IdentOptions).
-(H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N) = range(10)
-HYPER_SIZE = 10
+(H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD) = range(12)
+HYPER_SIZE = 12

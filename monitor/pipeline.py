@@ -62,6 +62,21 @@ class Assessment:
 
 
 @njit(cache=True)
+def assess_rig(st, hyper, g_f, g_c, min_rows, p, s):
+    """Estimates of one rig; an equation with fewer than min_rows rows has its parameters'
+    standard errors set to inf (not gradable). Converged once the chamber and valve equations
+    have their rows: the force balance is not required, because at fault-grade leakage the
+    piston barely moves and that equation is unidentifiable (the grade then comes from the rest).
+    """
+    estimates(st, hyper, g_f, g_c, p, s)
+    for eq, lo, hi in ((0, 0, 4), (1, 4, 8), (2, 8, 11)):
+        if st[O_ROWS + eq] < min_rows:
+            for j in range(lo, hi):
+                s[j] = np.inf
+    return st[O_ROWS + 1] >= min_rows and st[O_ROWS + 2] >= min_rows
+
+
+@njit(cache=True)
 def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
                   index, sign, edges, margins, z, rig, samples,
                   ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv):
@@ -82,9 +97,7 @@ def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_
         counts[r] += 1
         if counts[r] % eval_every != 0:
             continue
-        estimates(states[r], hyper, g_f, g_c, p[0], s[0])
-        conv[0] = (states[r, O_ROWS] >= min_rows and states[r, O_ROWS + 1] >= min_rows
-                   and states[r, O_ROWS + 2] >= min_rows)
+        conv[0] = assess_rig(states[r], hyper, g_f, g_c, min_rows, p[0], s[0])
         level, grades, confidence = grade_kernel(p, s, conv, index, sign, edges, margins, z,
                                                  bands[r:r + 1])
         ev_rig[n_ev] = r
@@ -243,9 +256,8 @@ class Fleet:
         p = np.empty((1, N_P))
         s = np.empty((1, N_P))
         k, ra = self._k, self._ra
-        estimates(self.states[rig], k.hyper, k.g_f, k.g_c, p[0], s[0])
-        rows = self.states[rig, O_ROWS:O_ROWS + 3]
-        conv = np.array([bool(np.all(rows >= self.options.min_rows))])
+        conv = np.array([assess_rig(self.states[rig], k.hyper, k.g_f, k.g_c, float(self.options.min_rows),
+                                    p[0], s[0])])
         band = self.bands[rig:rig + 1].copy()
         level, grades, conf = grade_kernel(p, s, conv, ra.index, ra.sign, ra.edges, ra.margins,
                                            self.grade_z, band)
