@@ -1,0 +1,49 @@
+"""``hydromon record``: the recorder node (bus -> MCAP files)."""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+
+from hydromon.bus import add_bus_arguments, session_from_args
+
+NAME = "record"
+HELP = "record everything under <namespace>/** into MCAP files (json + jsonschema channels)"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--out", default=".", metavar="PATH",
+                        help="a .mcap file, or a directory for time-stamped files (default: .)")
+    parser.add_argument("--rotate-mb", type=float, default=None, metavar="MB",
+                        help="start a new file once the current one reaches this many MB (1e6 B)")
+    parser.add_argument("--rotate-s", type=float, default=None, metavar="S",
+                        help="start a new file once the current one is this many seconds old")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="stop after this many seconds (default: until Ctrl-C / SIGTERM)")
+    add_bus_arguments(parser)
+
+
+def run(args) -> int:
+    from hydromon.recorder import record
+
+    if args.rotate_mb is not None and not args.rotate_mb > 0:
+        raise ValueError(f"--rotate-mb {args.rotate_mb} must be > 0")
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with session_from_args(args) as session:
+            result = record(
+                session, args.out, namespace=args.namespace,
+                rotate_bytes=None if args.rotate_mb is None else max(1, round(args.rotate_mb * 1e6)),
+                rotate_seconds=args.rotate_s, duration_s=args.duration, stop_event=stop,
+                on_file=lambda p: print(f"hydromon record: writing {p}", file=sys.stderr, flush=True))
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    print(f"hydromon record: {result.messages} messages in {len(result.files)} file(s)"
+          + (f"; {result.not_json} non-JSON payloads not recorded" if result.not_json else ""),
+          file=sys.stderr)
+    for path in result.files:
+        print(path)
+    return 0

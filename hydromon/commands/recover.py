@@ -1,0 +1,43 @@
+"""``hydromon recover``: salvage a cut recording (e.g. its recorder was killed)."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+NAME = "recover"
+HELP = "rewrite a truncated or damaged MCAP recording into a valid one with every surviving message"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("file", metavar="FILE", help="the damaged .mcap recording (left untouched)")
+    parser.add_argument("-o", "--out", default=None, metavar="OUT",
+                        help="where to write (default: FILE with .recovered.mcap)")
+    parser.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    parser.add_argument("--json", action="store_true", help="print the report as one JSON document")
+
+
+def default_output(path: str) -> str:
+    """``x.mcap`` -> ``x.recovered.mcap``."""
+    stem = path[:-len(".mcap")] if path.endswith(".mcap") else path
+    return stem + ".recovered.mcap"
+
+
+def run(args) -> int:
+    from dataclasses import asdict
+
+    from hydromon.mcap_io import recover
+
+    if not os.path.isfile(args.file):
+        raise FileNotFoundError(f"{args.file}: no such file")
+    out = args.out or default_output(args.file)
+    if os.path.exists(out) and not args.force:
+        raise ValueError(f"{out} exists; pass --force to overwrite it")
+    report = recover(args.file, out)
+    if args.json:
+        print(json.dumps({"out": out, **asdict(report)}))
+    else:
+        print(f"{out}: {report.summary()}")
+    print(f"hydromon recover: wrote {out}", file=sys.stderr)
+    return 0

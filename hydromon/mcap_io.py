@@ -1,0 +1,376 @@
+"""MCAP recordings of the bus: writer, readers and recovery of cut files (the MCAP edge).
+
+Layout (docs/contract.md, "Recordings"): one channel per key expression (topic = the key),
+``message encoding: json``; the channel's schema is the JSON Schema of the payload model
+for the key's leaf (``sample`` -> Sample, ``health`` -> Health, ``config`` -> RigConfig,
+anything else a permissive ``{}``), ``schema encoding: jsonschema``. Each rig's config is
+also stored as metadata ``rig_config/<id>`` (fields as JSON text) when it is first seen
+and whenever it changes. ``log_time`` is when the recorder received the message,
+``publish_time`` the payload's sample time ``t``; both integer nanoseconds.
+
+Every open chunk is closed and written out at most ``flush_interval_ns`` of log time after
+its first message, so a recorder that is killed loses at most about that much; such a
+file has no summary and :func:`recover` rewrites what survived into a valid one.
+Readers and writers take binary streams as well as paths, so tests run in memory.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import logging
+import os
+import re
+import struct
+from collections.abc import Iterable, Iterator
+
+import numpy as np
+import zstandard
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+from pydantic import ValidationError
+
+from hydromon.contract import Health, RigConfig, Sample, valid_rig_id
+
+__all__ = [
+    "RecordingError", "TruncatedRecording", "CorruptRecording", "RecordingWriter",
+    "RecoverReport", "read_recording", "read_samples", "read_rig_config", "recover",
+    "rig_topic", "SAMPLE_COLUMNS", "LEAF_MODELS", "MAGIC",
+]
+
+log = logging.getLogger(__name__)
+
+MAGIC = b"\x89MCAP0\r\n"
+SAMPLE_COLUMNS = ("t", "ug", "x1", "x3", "x4", "x5")
+"""Columns of :func:`read_samples`: t [s], ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m]."""
+LEAF_MODELS = {"sample": Sample, "health": Health, "config": RigConfig}
+_TOPIC_RE = re.compile(r"(?:.+/)?rig/([A-Za-z0-9_-]{1,64})/(sample|health|config)")
+_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+_U64 = 2**64
+
+# what a damaged file can make the mcap library raise while decoding
+_DECODE_ERRORS = (McapError, ValueError, KeyError, struct.error, EOFError, zstandard.ZstdError,
+                  RuntimeError)
+
+
+class RecordingError(ValueError):
+    """A recording cannot be read or written as asked (a ValueError: bad input)."""
+
+
+class TruncatedRecording(RecordingError):
+    """The recording has no footer (its recorder was killed); ``hydromon recover`` fixes it."""
+
+
+class CorruptRecording(RecordingError):
+    """The recording is not MCAP, or its content does not decode."""
+
+
+def rig_topic(key: str) -> tuple[str, str] | None:
+    """``(rig_id, leaf)`` for a topic ``<ns>/rig/<id>/<sample|health|config>``, else None."""
+    m = _TOPIC_RE.fullmatch(key)
+    return (m.group(1), m.group(2)) if m else None
+
+
+def _time_ns(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value < _U64:
+        raise ValueError(f"{name}={value!r} must be an integer number of nanoseconds in [0, 2**64)")
+    return int(value)
+
+
+class RecordingWriter:
+    """Write bus messages into one MCAP stream (see the module docstring for the layout).
+
+    Parameters
+    ----------
+    stream : binary file object
+        Where the recording goes (a file opened ``"wb"``, an ``io.BytesIO``...). Not closed.
+    chunk_size : int
+        Close a chunk when its uncompressed records pass this many bytes [B].
+    compression : {"zstd", "lz4", "none"}
+        Chunk compression.
+    flush_interval_ns : int
+        Close and write out the open chunk once the log time of a new message (or of
+        :meth:`flush_if_due`) is this far past the chunk's first message [ns].
+    """
+
+    def __init__(self, stream, *, chunk_size: int = 4 * 1024 * 1024, compression: str = "zstd",
+                 flush_interval_ns: int = 1_000_000_000):
+        if compression not in _COMPRESSION:
+            raise ValueError(f"compression {compression!r}: choose one of {', '.join(_COMPRESSION)}")
+        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size <= 0:
+            raise ValueError(f"chunk_size={chunk_size!r} must be a positive integer [B]")
+        if isinstance(flush_interval_ns, bool) or not isinstance(flush_interval_ns, int) \
+                or flush_interval_ns <= 0:
+            raise ValueError(f"flush_interval_ns={flush_interval_ns!r} must be a positive integer [ns]")
+        self.chunk_size = chunk_size
+        self.compression = compression
+        self.flush_interval_ns = flush_interval_ns
+        self._stream = stream
+        self._writer = Writer(stream, chunk_size=chunk_size, compression=_COMPRESSION[compression])
+        self._writer.start(profile="", library="hydromon")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._sequence: dict[int, int] = {}
+        self._configs: dict[str, bytes] = {}
+        self._chunk_first_ns: int | None = None
+        self._closed = False
+        self.message_count = 0
+        self.invalid_configs = 0
+
+    # -- channels -------------------------------------------------------------------------
+    def _schema_id(self, leaf: str | None) -> int:
+        model = LEAF_MODELS.get(leaf)
+        name = f"hydromon.{model.__name__}" if model else "hydromon.Any"
+        if name not in self._schemas:
+            schema = model.model_json_schema() if model else {}
+            self._schemas[name] = self._writer.register_schema(
+                name=name, encoding="jsonschema", data=json.dumps(schema).encode())
+        return self._schemas[name]
+
+    def _channel_id(self, key: str) -> int:
+        cid = self._channels.get(key)
+        if cid is None:
+            parsed = rig_topic(key)
+            sid = self._schema_id(parsed[1] if parsed else None)
+            cid = self._writer.register_channel(topic=key, message_encoding="json", schema_id=sid)
+            self._channels[key] = cid
+            self._sequence[cid] = 0
+        return cid
+
+    # -- messages -------------------------------------------------------------------------
+    def write(self, key: str, payload: bytes, log_time_ns: int, publish_time_ns: int) -> None:
+        """Add one message: ``payload`` (JSON bytes) received at ``log_time_ns`` on ``key``."""
+        if self._closed:
+            raise ValueError("write() on a closed RecordingWriter")
+        if not isinstance(key, str) or not key:
+            raise ValueError(f"key {key!r} must be a non-empty string")
+        if not isinstance(payload, (bytes, bytearray, memoryview)):
+            raise ValueError(f"payload for {key!r} must be bytes, got {type(payload).__name__}")
+        log_time_ns = _time_ns("log_time_ns", log_time_ns)
+        publish_time_ns = _time_ns("publish_time_ns", publish_time_ns)
+        self.flush_if_due(log_time_ns)
+        cid = self._channel_id(key)
+        seq = self._sequence[cid]
+        self._sequence[cid] = (seq + 1) % 2**32
+        payload = bytes(payload)
+        self._writer.add_message(channel_id=cid, log_time=log_time_ns, data=payload,
+                                 publish_time=publish_time_ns, sequence=seq)
+        self.message_count += 1
+        if self._chunk_first_ns is None:
+            self._chunk_first_ns = log_time_ns
+        parsed = rig_topic(key)
+        if parsed is not None and parsed[1] == "config":
+            self.store_config(key, payload)
+
+    def store_config(self, key: str, payload: bytes) -> bool:
+        """Store a rig's config (from its config ``key``) as metadata ``rig_config/<id>``.
+
+        Done by :meth:`write` for config messages; call it directly to carry a config into
+        a new file. Returns False if the payload equals the last one stored for the rig, or
+        is not a valid RigConfig (then it is logged and counted in ``invalid_configs``).
+        """
+        if self._closed:
+            raise ValueError("store_config() on a closed RecordingWriter")
+        parsed = rig_topic(key)
+        if parsed is None or parsed[1] != "config":
+            raise ValueError(f"key {key!r} is not a <ns>/rig/<id>/config key")
+        rig, payload = parsed[0], bytes(payload)
+        if self._configs.get(rig) == payload:
+            return False
+        try:
+            cfg = RigConfig.model_validate_json(payload)
+        except ValidationError as exc:
+            self.invalid_configs += 1
+            log.warning("config on %s is not a valid RigConfig; recorded, not stored as metadata: %s",
+                        key, exc.errors()[0].get("msg"))
+            return False
+        self._writer.add_metadata(f"rig_config/{rig}",
+                                  {k: json.dumps(v) for k, v in cfg.model_dump(mode="json").items()})
+        self._configs[rig] = payload
+        return True
+
+    def flush_if_due(self, now_ns: int) -> bool:
+        """Write out the open chunk if its first message is ``flush_interval_ns`` before ``now_ns``."""
+        first = self._chunk_first_ns
+        if first is not None and now_ns - first >= self.flush_interval_ns:
+            self.flush()
+            return True
+        return False
+
+    def flush(self) -> None:
+        """Close the open chunk (if any), write it out and flush the stream."""
+        if not self._closed:
+            self._writer.flush()
+            self._chunk_first_ns = None
+
+    def close(self) -> None:
+        """Write the last chunk and the summary (indexes, statistics). The stream stays open."""
+        if not self._closed:
+            self._writer.finish()
+            self._writer.flush()  # flushes the stream, also a BufferedWriter mcap wrapped around it
+            self._closed = True
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+# -- reading ------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _opened(src):
+    if isinstance(src, (str, os.PathLike)):
+        with open(src, "rb") as f:
+            yield f, os.fspath(src)
+    else:
+        if src.seekable():
+            src.seek(0)
+        yield src, getattr(src, "name", "<stream>")
+
+
+def _check_complete(f, name: str) -> None:
+    if not f.seekable():
+        return
+    size = f.seek(0, io.SEEK_END)
+    f.seek(0)
+    head = f.read(len(MAGIC))
+    if head != MAGIC[:len(head)] or (size >= len(MAGIC) and head != MAGIC):
+        raise CorruptRecording(f"{name}: not an MCAP file (bad magic)")
+    tail = b""
+    if size >= 2 * len(MAGIC):
+        f.seek(size - len(MAGIC))
+        tail = f.read(len(MAGIC))
+    f.seek(0)
+    if tail != MAGIC:
+        raise TruncatedRecording(f"{name}: recording has no footer (was the recorder killed?); "
+                                 f"run `hydromon recover {name}` to salvage it")
+
+
+def read_recording(src, topics: Iterable[str] | str | None = None, start_ns: int | None = None,
+                   end_ns: int | None = None) -> Iterator[tuple[str, bytes, int, int]]:
+    """Messages of a recording as ``(key, payload_bytes, log_time_ns, publish_time_ns)``.
+
+    In log-time order; ``topics`` filters by key; ``start_ns`` (inclusive) and ``end_ns``
+    (exclusive) bound the log time [ns]. ``src`` is a path or a seekable binary stream
+    (read from its start). Raises :class:`TruncatedRecording` for a file without footer.
+    """
+    for name, value in (("start_ns", start_ns), ("end_ns", end_ns)):
+        if value is not None:
+            _time_ns(name, value)
+    if isinstance(topics, str):
+        topics = [topics]
+    elif topics is not None:
+        topics = list(topics)
+    stack = contextlib.ExitStack()
+    f, name = stack.enter_context(_opened(src))
+    try:
+        _check_complete(f, name)
+    except BaseException:
+        stack.close()
+        raise
+
+    def gen():
+        with stack:
+            try:
+                for _schema, channel, msg in make_reader(f).iter_messages(
+                        topics=topics, starting_at=start_ns, ending_before=end_ns):
+                    yield channel.topic, msg.data, msg.log_time, msg.publish_time
+            except _DECODE_ERRORS as exc:
+                raise CorruptRecording(f"{name}: {type(exc).__name__}: {exc}") from exc
+
+    return gen()
+
+
+def _topics(src) -> list[str]:
+    with _opened(src) as (f, name):
+        _check_complete(f, name)
+        try:
+            summary = make_reader(f).get_summary()
+        except _DECODE_ERRORS as exc:
+            raise CorruptRecording(f"{name}: {type(exc).__name__}: {exc}") from exc
+        if summary is None:
+            raise TruncatedRecording(f"{name}: recording has no summary; run `hydromon recover {name}`")
+        return sorted({c.topic for c in summary.channels.values()})
+
+
+def _rig_topics(src, leaf: str, rig: str | None) -> dict[str, str]:
+    found: dict[str, str] = {}
+    for topic in _topics(src):
+        parsed = rig_topic(topic)
+        if parsed and parsed[1] == leaf:
+            if parsed[0] in found:
+                raise RecordingError(f"rig {parsed[0]!r} appears under two namespaces: "
+                                     f"{found[parsed[0]]!r} and {topic!r}")
+            found[parsed[0]] = topic
+    if rig is not None and not valid_rig_id(rig):
+        raise ValueError(f"rig id {rig!r} must be 1-64 chars of [A-Za-z0-9_-]")
+    return found
+
+
+def read_samples(src, rig: str | None = None) -> tuple[str, np.ndarray, np.ndarray]:
+    """One rig's samples: ``(rig_id, data, seq)``.
+
+    ``data`` is float64 ``(N, 6)`` with columns :data:`SAMPLE_COLUMNS` (t [s], ug [V],
+    x1 [m], x3 [Pa], x4 [Pa], x5 [m]), ``seq`` int64 ``(N,)``, both in log-time order.
+    ``rig`` may be None only if the recording holds one rig. Every payload is validated
+    against :class:`~hydromon.contract.Sample`; a bad one raises :class:`RecordingError`.
+    """
+    rigs = _rig_topics(src, "sample", rig)
+    if not rigs:
+        raise RecordingError("recording holds no rig samples")
+    if rig is None:
+        if len(rigs) > 1:
+            raise ValueError(f"recording holds several rigs ({', '.join(sorted(rigs))}); choose one")
+        rig = next(iter(rigs))
+    elif rig not in rigs:
+        raise ValueError(f"rig {rig!r} not in recording; it holds {', '.join(sorted(rigs))}")
+    rows, seqs = [], []
+    for key, payload, log_ns, _ in read_recording(src, topics=[rigs[rig]]):
+        try:
+            s = Sample.model_validate_json(payload)
+        except ValidationError as exc:
+            raise RecordingError(f"bad sample on {key} at log time {log_ns} ns: "
+                                 f"{exc.errors()[0].get('loc')}: {exc.errors()[0].get('msg')}") from None
+        rows.append((s.t, s.ug, s.x1, s.x3, s.x4, s.x5))
+        seqs.append(s.seq)
+    data = np.array(rows, dtype=np.float64).reshape(len(rows), len(SAMPLE_COLUMNS))
+    return rig, data, np.array(seqs, dtype=np.int64)
+
+
+def read_rig_config(src, rig: str) -> RigConfig:
+    """The last config of ``rig`` in the recording (metadata ``rig_config/<id>``, else the
+    last message on its config channel). Raises ValueError if there is none."""
+    if not valid_rig_id(rig):
+        raise ValueError(f"rig id {rig!r} must be 1-64 chars of [A-Za-z0-9_-]")
+    with _opened(src) as (f, name):
+        _check_complete(f, name)
+        try:
+            found = [m.metadata for m in make_reader(f).iter_metadata() if m.name == f"rig_config/{rig}"]
+        except _DECODE_ERRORS as exc:
+            raise CorruptRecording(f"{name}: {type(exc).__name__}: {exc}") from exc
+    if found:
+        return RigConfig.model_validate({k: json.loads(v) for k, v in found[-1].items()})
+    topics = _rig_topics(src, "config", rig)
+    if rig in topics:
+        last = None
+        for _, payload, _, _ in read_recording(src, topics=[topics[rig]]):
+            last = payload
+        if last is not None:
+            return RigConfig.model_validate_json(last)
+    raise ValueError(f"no config for rig {rig!r} in recording (rigs with a config: "
+                     f"{', '.join(sorted(topics)) or 'none'})")
+
+
+def __getattr__(name: str):
+    # recovery is an idea of its own (hydromon.mcap_recover); re-exported here lazily
+    if name in ("recover", "RecoverReport"):
+        from hydromon import mcap_recover
+        return getattr(mcap_recover, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

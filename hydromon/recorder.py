@@ -1,0 +1,232 @@
+"""Recorder node: everything under ``<ns>/**`` on an open zenoh session, into MCAP files.
+
+The node takes an open session (STYLE.md 8) and never opens one. Samples arrive through a
+FIFO channel handler (zenoh forbids blocking or calling its API inside callbacks) that the
+worker loop drains; between batches the loop closes the open chunk once it is
+``flush_interval_ns`` old, so a killed recorder loses well under a second, and rotates
+files by size or age. ``log_time`` is the receive time (``clock()``, wall-clock ns);
+``publish_time`` is the payload's sample time ``t`` [s] in ns when the payload is a JSON
+object with a numeric ``t``, else the receive time.
+
+File names never contain a rig id: ``out`` is either a ``.mcap`` path, whose parts after
+the first get ``-1``, ``-2``... before the suffix, or a directory, where parts are named
+``<namespace>-<UTC time>.mcap`` (``/`` in the namespace becomes ``_``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import zenoh
+
+from hydromon.bus import loads
+from hydromon.contract import DEFAULT_NAMESPACE, _check_ns
+from hydromon.mcap_io import RecordingWriter, rig_topic
+
+__all__ = ["record", "RecordResult", "publish_time_ns", "Rotation"]
+
+log = logging.getLogger(__name__)
+_BATCH = 1000  # messages drained between timer checks
+
+
+@dataclass
+class RecordResult:
+    """Where a recording went: ``files`` in order, message counts."""
+
+    files: list[Path] = field(default_factory=list)
+    messages: int = 0
+    not_json: int = 0
+
+
+def publish_time_ns(obj, receive_time_ns: int) -> int:
+    """``t`` [s] of a decoded payload as integer ns, or ``receive_time_ns`` if it has none."""
+    t = obj.get("t") if isinstance(obj, dict) else None
+    if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t):
+        ns = round(t * 1e9)
+        if 0 <= ns < 2**64:
+            return ns
+    return receive_time_ns
+
+
+class Rotation:
+    """The open MCAP file and its successors.
+
+    Parameters
+    ----------
+    out : str or Path
+        A ``.mcap`` file path, or a directory (existing, or given with a trailing ``/``).
+    namespace : str
+        Used in file names when ``out`` is a directory.
+    rotate_bytes : int or None
+        Start a new file once the current one reaches this size [B].
+    rotate_ns : int or None
+        Start a new file once the current one spans this much log time [ns] (from its
+        first message, so a quiet bus makes no empty files).
+    writer_kwargs : dict
+        Passed to :class:`~hydromon.mcap_io.RecordingWriter`.
+    on_file : callable or None
+        Called with each new file's path.
+    """
+
+    def __init__(self, out, namespace: str, rotate_bytes: int | None, rotate_ns: int | None,
+                 writer_kwargs: dict, on_file: Callable[[Path], None] | None, now_ns: int):
+        for name, v in (("rotate_bytes", rotate_bytes), ("rotate_ns", rotate_ns)):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v <= 0):
+                raise ValueError(f"{name}={v!r} must be a positive integer or None")
+        out_s = os.fspath(out)
+        if out_s.endswith(("/", os.sep)) or os.path.isdir(out_s):
+            stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime(now_ns / 1e9))
+            self._base = Path(out_s) / f"{namespace.replace('/', '_')}-{stamp}"
+        else:
+            path = Path(out_s)
+            self._base = path.with_suffix("") if path.suffix == ".mcap" else path
+        self._base.parent.mkdir(parents=True, exist_ok=True)
+        self.rotate_bytes, self.rotate_ns = rotate_bytes, rotate_ns
+        self._kwargs, self._on_file = writer_kwargs, on_file
+        self.files: list[Path] = []
+        self._configs: dict[str, bytes] = {}
+        self._file = self.writer = None
+        self._first_ns: int | None = None
+        self._open()
+
+    def _open(self) -> None:
+        part = len(self.files)
+        while True:
+            path = self._base.with_name(self._base.name + (f"-{part}" if part else "") + ".mcap")
+            try:
+                f = open(path, "xb")
+                break
+            except FileExistsError:
+                if not self.files:
+                    raise ValueError(f"{path} exists; refusing to overwrite a recording") from None
+                part += 1
+        self._file, self._first_ns = f, None
+        self.writer = RecordingWriter(f, **self._kwargs)
+        for key, payload in self._configs.items():  # every part carries the rigs' configs
+            self.writer.store_config(key, payload)
+        self.files.append(path)
+        if self._on_file:
+            self._on_file(path)
+
+    def write(self, key: str, payload: bytes, log_time_ns: int, publish_time_ns: int) -> None:
+        self.writer.write(key, payload, log_time_ns, publish_time_ns)
+        if self._first_ns is None:
+            self._first_ns = log_time_ns
+        parsed = rig_topic(key)
+        if parsed is not None and parsed[1] == "config":
+            self._configs[key] = payload
+
+    def tick(self, now_ns: int) -> None:
+        """Flush the open chunk if due; rotate if the file is big or old enough."""
+        self.writer.flush_if_due(now_ns)
+        if self._first_ns is None:
+            return
+        if (self.rotate_bytes is not None and self._file.tell() >= self.rotate_bytes) or \
+                (self.rotate_ns is not None and now_ns - self._first_ns >= self.rotate_ns):
+            self.close()
+            self._open()
+
+    def close(self) -> None:
+        if self._file is not None and not self._file.closed:
+            try:
+                self.writer.close()
+            finally:
+                self._file.close()
+
+
+def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
+           rotate_bytes: int | None = None, rotate_seconds: float | None = None,
+           stop_event: threading.Event | None = None, duration_s: float | None = None,
+           flush_interval_ns: int = 500_000_000, chunk_size: int = 4 * 1024 * 1024,
+           capacity: int = 65536, poll_s: float = 0.005,
+           on_file: Callable[[Path], None] | None = None,
+           on_message: Callable[[str], None] | None = None,
+           clock: Callable[[], int] = time.time_ns) -> RecordResult:
+    """Record ``<namespace>/**`` from ``session`` until ``stop_event`` is set or ``duration_s``.
+
+    Parameters
+    ----------
+    session : zenoh.Session
+        An open session; not closed here.
+    out : str or Path
+        A ``.mcap`` path or a directory (see the module docstring for file names).
+    rotate_bytes, rotate_seconds : int [B], float [s] or None
+        Start a new file when the current one passes this size or age.
+    stop_event : threading.Event or None
+        Set it (from another thread or a signal handler) to stop; the files are closed
+        with their summaries.
+    duration_s : float or None
+        Stop after this long [s].
+    flush_interval_ns : int
+        Longest a received message waits in memory before it is in the file [ns].
+    capacity : int
+        Samples the FIFO channel holds before zenoh back-pressures the transport.
+    poll_s : float
+        Sleep when the channel is empty [s].
+    on_file : callable or None
+        Called with the path of each file as it is opened.
+    on_message : callable or None
+        Called with the key of each message once it is handed to the writer (progress).
+    clock : callable
+        Receive time source [ns since the Unix epoch].
+    """
+    _check_ns(namespace)
+    if rotate_seconds is not None and not (isinstance(rotate_seconds, (int, float)) and rotate_seconds > 0):
+        raise ValueError(f"rotate_seconds={rotate_seconds!r} must be > 0 [s]")
+    if duration_s is not None and not (isinstance(duration_s, (int, float)) and duration_s >= 0):
+        raise ValueError(f"duration_s={duration_s!r} must be >= 0 [s]")
+    stop = stop_event if stop_event is not None else threading.Event()
+    start = clock()
+    deadline = None if duration_s is None else start + round(duration_s * 1e9)
+    rotation = Rotation(out, namespace, rotate_bytes,
+                        None if rotate_seconds is None else round(rotate_seconds * 1e9),
+                        {"chunk_size": chunk_size, "flush_interval_ns": flush_interval_ns},
+                        on_file, start)
+    result = RecordResult(files=rotation.files)
+    warned: set[str] = set()
+
+    def handle(sample) -> None:
+        now = clock()
+        key = str(sample.key_expr)
+        payload = sample.payload.to_bytes()
+        try:
+            obj = loads(payload)
+        except ValueError:
+            result.not_json += 1
+            if key not in warned:
+                warned.add(key)
+                log.warning("not recording non-JSON payloads on %s (first of them)", key)
+            return
+        rotation.write(key, payload, now, publish_time_ns(obj, now))
+        result.messages += 1
+        if on_message is not None:
+            on_message(key)
+
+    try:
+        with session.declare_subscriber(f"{namespace}/**", zenoh.handlers.FifoChannel(capacity)) as sub:
+            try:
+                while True:
+                    n = 0
+                    while n < _BATCH and (sample := sub.try_recv()) is not None:
+                        handle(sample)
+                        n += 1
+                    now = clock()
+                    rotation.tick(now)
+                    if stop.is_set() or (deadline is not None and now >= deadline):
+                        break
+                    if n == 0:
+                        stop.wait(poll_s)
+                while (sample := sub.try_recv()) is not None:  # what is already queued
+                    handle(sample)
+            except zenoh.ZError as exc:  # the session was closed under us: end the recording
+                log.warning("recorder stopping: %s", exc)
+    finally:
+        rotation.close()
+    return result

@@ -1,0 +1,272 @@
+"""Recorder node: file rotation and naming, publish times, and real zenoh sessions on loopback
+(in a thread with a stop event, and as a separate process that is SIGKILLed then recovered)."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+import zenoh
+
+from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.contract import RigConfig, Sample, config_key, sample_key
+from hydromon.mcap_io import (
+    TruncatedRecording, read_recording, read_rig_config, read_samples, recover,
+)
+from hydromon.recorder import Rotation, publish_time_ns, record
+
+NS = 1_000_000_000
+BLOCK = zenoh.CongestionControl.BLOCK  # tests must not lose samples to a full queue
+
+
+def sample_bytes(seq: int, t: float) -> bytes:
+    return Sample(seq=seq, t=t, ug=0.1, x1=1e-3, x3=6e6, x4=3e6, x5=1e-5).model_dump_json().encode()
+
+
+# -- pure parts -----------------------------------------------------------------------------
+@pytest.mark.parametrize("obj, expected", [
+    ({"t": 1.5}, 1_500_000_000),
+    ({"t": 2}, 2 * NS),
+    ({"t": 0.0}, 0),
+    ({"t": -1.0}, 777),      # before the epoch of the MCAP time: receive time
+    ({"t": 1e30}, 777),      # beyond uint64 ns
+    ({"t": True}, 777),
+    ({"t": "3"}, 777),
+    ({"x": 1}, 777),
+    ([1, 2], 777),
+])
+def test_publish_time_is_the_payload_t_in_ns_else_the_receive_time(obj, expected):
+    assert publish_time_ns(obj, 777) == expected
+
+
+def _rotation(tmp_path, **kw):
+    opened = []
+    kw.setdefault("rotate_bytes", None)
+    kw.setdefault("rotate_ns", None)
+    r = Rotation(kw.pop("out", tmp_path / "run.mcap"), "hydro", kw["rotate_bytes"], kw["rotate_ns"],
+                 {"flush_interval_ns": NS}, opened.append, 0)
+    return r, opened
+
+
+def test_rotation_by_size_keeps_every_message_and_carries_configs(tmp_path):
+    r, opened = _rotation(tmp_path, rotate_bytes=3000)
+    cfg = RigConfig(p_s=10e6).model_dump_json().encode()
+    r.write(config_key("r1"), cfg, 1, 1)
+    n = 600
+    for i in range(n):
+        now = 2 + i * 10_000_000
+        r.write(sample_key("r1"), sample_bytes(i, i * 0.01), now, now)
+        r.tick(now)
+    r.close()
+    assert len(r.files) > 2 and opened == r.files
+    assert [p.name for p in r.files[:3]] == ["run.mcap", "run-1.mcap", "run-2.mcap"]
+    seqs = []
+    for p in r.files:
+        _, _, seq = read_samples(p)  # every part is a complete, valid recording
+        seqs.extend(seq)
+        assert read_rig_config(p, "r1") == RigConfig(p_s=10e6)
+    assert seqs == list(range(n))
+
+
+def test_rotation_by_age_and_never_an_empty_part(tmp_path):
+    r, _ = _rotation(tmp_path, rotate_ns=NS)
+    r.tick(5 * NS)  # old but empty: no new file
+    assert len(r.files) == 1
+    for i in range(30):  # 3 s of messages
+        now = 5 * NS + i * 100_000_000
+        r.write("hydro/rig/a/sample", sample_bytes(i, i * 0.1), now, now)
+        r.tick(now)
+    r.close()
+    assert len(r.files) == 3
+    assert sum(len(list(read_recording(p))) for p in r.files) == 30
+
+
+def test_directory_output_uses_namespace_and_time_never_a_rig_id(tmp_path):
+    r, _ = _rotation(tmp_path, out=tmp_path)
+    r.write("hydro/rig/evil_rig/sample", sample_bytes(0, 0.0), 1, 1)
+    r.close()
+    (path,) = r.files
+    assert path.parent == tmp_path and path.name.startswith("hydro-") and path.suffix == ".mcap"
+    assert "evil" not in path.name
+
+
+def test_rotation_refuses_to_overwrite_a_recording(tmp_path):
+    (tmp_path / "run.mcap").write_bytes(b"precious")
+    with pytest.raises(ValueError, match="refusing to overwrite"):
+        _rotation(tmp_path)
+    assert (tmp_path / "run.mcap").read_bytes() == b"precious"
+
+
+def test_record_validates_its_arguments(tmp_path):
+    with pytest.raises(ValueError, match="namespace"):
+        record(None, tmp_path / "x.mcap", namespace="bad ns")
+    with pytest.raises(ValueError, match="rotate_seconds"):
+        record(None, tmp_path / "x.mcap", rotate_seconds=0)
+    with pytest.raises(ValueError, match="rotate_bytes"):
+        record(None, tmp_path / "x.mcap", rotate_bytes=-5)
+
+
+# -- real zenoh sessions on loopback ----------------------------------------------------------
+def _wait(pred, timeout_s: float, what: str) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not pred():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+        time.sleep(0.01)
+
+
+@pytest.mark.network
+@pytest.mark.timeout(60)
+def test_record_over_a_real_zenoh_session_in_a_thread(tmp_path):
+    ep = free_tcp_endpoint()
+    n = 200
+    with open_session("peer", listen=[ep]) as rec_session, open_session("peer", connect=[ep]) as pub_session:
+        got = threading.Event()
+        count = {"n": 0}
+
+        def on_message(key):
+            count["n"] += 1
+            if count["n"] == n + 2:
+                got.set()
+
+        stop = threading.Event()
+        out = tmp_path / "live.mcap"
+        result = {}
+        worker = threading.Thread(target=lambda: result.update(r=record(
+            rec_session, out, stop_event=stop, on_message=on_message)), daemon=True)
+        worker.start()
+        pub = pub_session.declare_publisher(sample_key("rig-7"), congestion_control=BLOCK)
+        _wait(lambda: pub.matching_status.matching, 20, "the recorder's subscription")
+        pub_session.put(config_key("rig-7"), RigConfig(K_f=42.0).model_dump_json())
+        for i in range(n):
+            pub.put(sample_bytes(i, 100.0 + i * 0.01))
+        pub_session.put("hydro/notes/x", b'{"hello": 1}')
+        pub_session.put("hydro/notes/y", b"not json")
+        assert got.wait(20), f"recorder saw {count['n']} of {n + 2} messages"
+        stop.set()
+        worker.join(20)
+        assert not worker.is_alive()
+    res = result["r"]
+    assert res.files == [out] and res.messages == n + 2 and res.not_json == 1
+    rig, arr, seq = read_samples(out)
+    assert rig == "rig-7" and seq.tolist() == list(range(n))
+    np.testing.assert_allclose(arr[:, 0], 100.0 + np.arange(n) * 0.01)
+    assert read_rig_config(out, "rig-7").K_f == 42.0
+    msgs = list(read_recording(out, topics=sample_key("rig-7")))
+    assert [m[3] for m in msgs] == [round((100.0 + i * 0.01) * 1e9) for i in range(n)]  # publish = t
+    assert all(m[2] > 1_600_000_000 * NS for m in msgs)  # log time = wall-clock receive time
+
+
+def _live_count(path) -> int:
+    """Messages readable from a snapshot of a file that is still being written."""
+    if not path.exists():
+        return 0
+    return recover(io.BytesIO(path.read_bytes()), io.BytesIO()).messages
+
+
+def _live_seqs(path) -> set[int]:
+    """Sample seqs readable from a snapshot of a file that is still being written."""
+    if not path.exists():
+        return set()
+    fixed = io.BytesIO()
+    recover(io.BytesIO(path.read_bytes()), fixed)
+    return {json.loads(m[1])["seq"] for m in read_recording(fixed) if m[0].endswith("/sample")}
+
+
+def _record_process(out, ep, log):
+    return subprocess.Popen(
+        [sys.executable, "-m", "hydromon.cli", "record", "--out", str(out), "--listen", ep],
+        stdout=log, stderr=log, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+
+
+@pytest.mark.network
+@pytest.mark.timeout(90)
+def test_sigkilled_recorder_loses_at_most_its_last_second(tmp_path):
+    ep = free_tcp_endpoint()
+    out = tmp_path / "killed.mcap"
+    with open(tmp_path / "record.log", "wb") as log:
+        proc = _record_process(out, ep, log)
+        try:
+            with open_session("peer", connect=[ep]) as session:
+                pub = session.declare_publisher(sample_key("k1"), congestion_control=BLOCK)
+                _wait(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe")
+                sent_ns = []
+                start = time.monotonic()
+                i = 0
+                while time.monotonic() - start < 3.0:  # 100 Hz for ~3 s
+                    now = time.time_ns()
+                    pub.put(sample_bytes(i, now / NS))
+                    sent_ns.append(now)
+                    i += 1
+                    time.sleep(0.01)
+                    if i % 15 == 0:
+                        # what is on disk now is what a kill now would leave: check it too
+                        snap_ns = time.time_ns()
+                        on_disk = _live_seqs(out)
+                        due = {k for k, t in enumerate(sent_ns) if t < snap_ns - NS}
+                        assert due <= on_disk, f"{len(due - on_disk)} samples > 1 s old not on disk"
+                kill_ns = time.time_ns()
+                proc.send_signal(signal.SIGKILL)
+                proc.wait(20)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(20)
+    assert proc.returncode == -signal.SIGKILL
+    with pytest.raises(TruncatedRecording):
+        read_recording(out)
+    fixed = tmp_path / "fixed.mcap"
+    report = recover(out, fixed)
+    _, _, seq = read_samples(fixed)
+    old = [k for k, t in enumerate(sent_ns) if t < kill_ns - NS]
+    assert len(old) > 100
+    assert set(old) <= set(seq.tolist()), report.summary()
+    assert seq.tolist() == list(range(len(seq)))  # a prefix, in order
+
+
+@pytest.mark.network
+@pytest.mark.timeout(90)
+def test_sigterm_stops_the_recorder_cleanly_with_a_complete_file(tmp_path):
+    ep = free_tcp_endpoint()
+    out = tmp_path / "clean.mcap"
+    with open(tmp_path / "record.log", "wb") as log:
+        proc = _record_process(out, ep, log)
+        try:
+            with open_session("peer", connect=[ep]) as session:
+                pub = session.declare_publisher(sample_key("k2"), congestion_control=BLOCK)
+                _wait(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe")
+                for i in range(50):
+                    pub.put(sample_bytes(i, i * 0.01))
+                # the live file is flushed within the flush interval: all 50 become readable
+                _wait(lambda: _live_count(out) == 50, 20, "the 50 samples in the live file")
+                proc.send_signal(signal.SIGTERM)
+                assert proc.wait(30) == 0
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(20)
+    printed = (tmp_path / "record.log").read_text()
+    assert str(out) in printed
+    _, _, seq = read_samples(out)  # has its summary: no recover needed
+    assert seq.tolist() == list(range(50))
+
+
+@pytest.mark.network
+@pytest.mark.timeout(60)
+def test_record_command_stops_after_its_duration_and_prints_the_file(tmp_path, capsys):
+    from hydromon.cli import main as cli_main
+
+    out = tmp_path / "sub" / "short.mcap"
+    assert cli_main(["record", "--out", str(out), "--listen", free_tcp_endpoint(), "--duration", "0.3"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out.split() == [str(out)]
+    assert f"writing {out}" in captured.err
+    assert list(read_recording(out)) == []  # a complete, empty recording
