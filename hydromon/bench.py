@@ -1,0 +1,429 @@
+"""The performance figures of ``hydromon bench`` (issue 5), measured in one run.
+
+Each ``bench_*`` function measures one figure and returns plain numbers; :func:`run_bench`
+collects them into a :class:`BenchResult` (present it with :func:`to_json` / the CLI's table).
+Throughputs are samples per second of wall time (``time.perf_counter``), the median of
+``repeats`` timed passes after an untimed warm-up pass (so numba compilation and caches are
+not counted). This is the shell: it reads clocks, spawns processes and opens sockets.
+
+Figures
+-------
+core_single
+    ``Fleet.update`` of one rig over a 60 s paper-var run, fed one sample per call (as a live
+    subscriber hands them over: the headline) and in batches of 100.
+core_batch
+    1000 rigs, one sample per rig per tick, one ``Fleet.update`` per tick (batches of 1000).
+replay_direct
+    A simulated recording in an in-memory MCAP: read, decode, validate (pydantic ``Sample``)
+    and ``Fleet.update``, as fast as possible.
+baseline_naive
+    ``hydromon.naive``: the same identification per sample in plain numpy (no numba, no
+    batching), for one rig, on the same run as core_single.
+memory_per_rig
+    Fleet state bytes per rig (array nbytes / capacity) and the RSS growth of 10,000 rigs.
+transport_ceiling
+    Bare zenoh: a publisher process puts contract sample JSON as fast as it can over loopback
+    TCP to a subscriber process that only drains a FIFO channel; messages/s received.
+live
+    ``hydromon sim --rate 1`` and ``hydromon monitor`` as separate processes, stepping up the
+    rig count (see :mod:`hydromon.bench_live`).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import gc
+import io
+import multiprocessing as mp
+import os
+import platform
+import statistics
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+__all__ = [
+    "BenchResult", "paper_var_samples", "bench_core_single", "bench_core_batch", "bench_replay_direct",
+    "bench_naive", "bench_memory", "bench_transport", "machine_info", "run_bench", "to_json",
+    "append_history",
+]
+
+
+def _log(msg: str) -> None:
+    print(f"hydromon bench: {msg}", file=sys.stderr, flush=True)
+
+
+def _median_rate(n: int, fn, repeats: int) -> float:
+    """Median of n / seconds over ``repeats`` timed calls of ``fn`` (after one warm-up call)."""
+    fn()
+    rates = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        rates.append(n / (time.perf_counter() - t))
+    return float(statistics.median(rates))
+
+
+def paper_var_samples(duration: float = 60.0, noise: str = "realistic", seed: int = 0) -> np.ndarray:
+    """(N, 5) samples ug, x1, x3, x4, x5 (SI) of a nominal rig under the paper-var input."""
+    from plant_sim.noise import noise_model
+    from plant_sim.profiles import PaperVariable
+    from plant_sim.simulate import simulate
+
+    return simulate(PaperVariable(), duration, noise=noise_model(noise), seed=seed).samples
+
+
+# -- core ---------------------------------------------------------------------------------------
+
+def bench_core_single(samples: np.ndarray, batch: int, repeats: int = 3) -> float:
+    """samples/s of ``Fleet.update`` for one rig fed ``batch`` samples per call."""
+    from monitor.pipeline import Fleet
+
+    if batch < 1:
+        raise ValueError(f"batch {batch!r} must be >= 1")
+    n = len(samples)
+    rig = np.zeros(n, np.int64)
+    samples = np.ascontiguousarray(samples, dtype=np.float64)
+    if batch == 1:
+        rows = [samples[i:i + 1] for i in range(n)]
+        rigs = [rig[i:i + 1] for i in range(n)]
+    else:
+        rows = [samples[i:i + batch] for i in range(0, n, batch)]
+        rigs = [rig[i:i + batch] for i in range(0, n, batch)]
+
+    def one_pass():
+        fleet = Fleet(capacity=1)
+        fleet.add_rig("rig")
+        for r, s in zip(rigs, rows):
+            fleet.update(r, s)
+
+    return _median_rate(n, one_pass, repeats)
+
+
+def bench_core_batch(source: np.ndarray, n_rigs: int = 1000, ticks: int = 1000, repeats: int = 3) -> float:
+    """samples/s of ``Fleet.update`` on ``n_rigs`` rigs, one sample per rig per tick.
+
+    ``source`` (n_src, N, 5): distinct runs tiled over the rigs (rig r plays run r % n_src).
+    """
+    from monitor.pipeline import Fleet
+
+    n_src, n, _ = source.shape
+    if ticks > n:
+        raise ValueError(f"ticks {ticks} > samples per source run {n}")
+    # (ticks, n_rigs, 5), built before timing: the batch as a subscriber would hand it over
+    blocks = np.ascontiguousarray(source[np.arange(n_rigs) % n_src][:, :ticks].transpose(1, 0, 2))
+    rig = np.arange(n_rigs, dtype=np.int64)
+
+    def one_pass():
+        fleet = Fleet(capacity=n_rigs)
+        for r in range(n_rigs):
+            fleet.add_rig(f"rig-{r}")
+        for k in range(ticks):
+            fleet.update(rig, blocks[k])
+
+    return _median_rate(n_rigs * ticks, one_pass, repeats)
+
+
+def bench_naive(samples: np.ndarray, repeats: int = 1) -> float:
+    """samples/s of ``hydromon.naive.NaiveIdentifier`` (plain numpy per sample) on one rig."""
+    from hydromon.naive import NaiveIdentifier
+
+    def one_pass():
+        ident = NaiveIdentifier()
+        for row in samples:
+            ident.update(row)
+
+    return _median_rate(len(samples), one_pass, repeats)
+
+
+# -- memory -------------------------------------------------------------------------------------
+
+def _rss_bytes() -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError("no VmRSS in /proc/self/status")
+
+
+def bench_memory(n_rigs: int = 10_000) -> dict:
+    """Fleet state bytes per rig (nbytes / capacity) and RSS growth per rig for ``n_rigs`` rigs.
+
+    The RSS figure includes the ids, the index and the array over-allocation of doubling, after
+    one update of every rig (so every page is touched).
+    """
+    from monitor.pipeline import Fleet
+
+    gc.collect()
+    rss0 = _rss_bytes()
+    fleet = Fleet()
+    for r in range(n_rigs):
+        fleet.add_rig(f"rig-{r:05d}")
+    fleet.update(np.arange(n_rigs, dtype=np.int64), np.tile([2.0, 0.0, 6e6, 6e6, 0.0], (n_rigs, 1)))
+    gc.collect()
+    rss1 = _rss_bytes()
+    cap = fleet.states.shape[0]
+    nbytes = fleet.states.nbytes + fleet.consts.nbytes + fleet.counts.nbytes + fleet.bands.nbytes
+    return {"state_bytes": nbytes / cap, "rss_bytes": (rss1 - rss0) / n_rigs, "rigs": n_rigs}
+
+
+# -- replay -------------------------------------------------------------------------------------
+
+def _replay_path():
+    """A direct-replay function of hydromon.replay if there is one, else None."""
+    try:
+        from hydromon import replay  # noqa: F401  (written by another engineer)
+    except ImportError:
+        return None
+    for name in ("replay_direct", "run_direct"):
+        fn = getattr(replay, name, None)
+        if callable(fn):
+            return fn
+    return None
+
+
+def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int = 3) -> dict:
+    """samples/s of MCAP (in memory) -> read -> decode -> validate -> Fleet.update.
+
+    Uses our own loop over :func:`hydromon.mcap_io.read_recording` (the replay node's direct
+    path, when present, is reported as ``via``).
+    """
+    from hydromon.contract import Sample
+    from hydromon.fleetfile import spread_fleet
+    from hydromon.mcap_io import read_recording, rig_topic
+    from hydromon.simnode import write_mcap
+    from monitor.pipeline import Fleet
+
+    spec = spread_fleet(n_rigs, profile="paper-var", noise="realistic")
+    buf = io.BytesIO()
+    write_mcap(spec, duration, buf)
+    data = buf.getvalue()
+    n_samples = n_rigs * int(round(duration * 100.0))
+    chunk = 4096
+
+    def one_pass():
+        fleet = Fleet(capacity=n_rigs)
+        index = {rid: fleet.add_rig(rid) for rid in spec.ids}
+        rig = np.empty(chunk, np.int64)
+        rows = np.empty((chunk, 5))
+        m = 0
+        count = 0
+        for key, payload, _, _ in read_recording(io.BytesIO(data)):
+            parsed = rig_topic(key)
+            if parsed is None or parsed[1] != "sample":
+                continue
+            s = Sample.model_validate_json(payload)
+            rig[m] = index[parsed[0]]
+            rows[m] = (s.ug, s.x1, s.x3, s.x4, s.x5)
+            m += 1
+            if m == chunk:
+                fleet.update(rig, rows)
+                count += m
+                m = 0
+        if m:
+            fleet.update(rig[:m], rows[:m])
+            count += m
+        if count != n_samples:
+            raise RuntimeError(f"replay read {count} samples, expected {n_samples}")
+
+    rate = _median_rate(n_samples, one_pass, repeats)
+    return {"samples_per_s": rate, "rigs": n_rigs, "samples": n_samples, "mcap_bytes": len(data),
+            "via": "hydromon.bench (read_recording + Sample.model_validate_json + Fleet.update)"}
+
+
+# -- transport ----------------------------------------------------------------------------------
+
+def _transport_sub(endpoint: str, seconds: float, ready, out) -> None:
+    import zenoh
+
+    from hydromon.bus import open_session
+
+    with open_session("peer", listen=[endpoint]) as session:
+        sub = session.declare_subscriber("hydro/rig/*/sample", zenoh.handlers.FifoChannel(65536))
+        ready.put(True)
+        first = sub.recv()  # the publisher has started
+        t0 = time.perf_counter()
+        c0 = time.process_time()
+        n = 0
+        deadline = t0 + seconds
+        # blocking drain: the publisher keeps sending past our window, so recv() returns
+        while True:
+            sub.recv()
+            n += 1
+            if (n & 255) == 0 and time.perf_counter() >= deadline:
+                break
+        dt = time.perf_counter() - t0
+        out.put({"messages": n, "seconds": dt, "cpu_s": time.process_time() - c0, "first": first is not None})
+        sub.undeclare()
+
+
+def _transport_pub(endpoint: str, seconds: float, n_keys: int, out) -> None:
+    import orjson
+    import zenoh
+
+    from hydromon.bus import JSON, open_session
+
+    with open_session("peer", connect=[endpoint]) as session:
+        pubs = [session.declare_publisher(f"hydro/rig/rig-{i:04d}/sample", encoding=JSON,
+                                          congestion_control=zenoh.CongestionControl.BLOCK)
+                for i in range(n_keys)]
+        time.sleep(1.0)  # let the subscriber's interest arrive
+        payloads = [orjson.dumps({"seq": k, "t": k * 0.01, "ug": 2.0 + 0.1 * k % 1, "x1": 0.01234567,
+                                  "x3": 6123456.7, "x4": 5987654.3, "x5": 1.2345e-5}) for k in range(1000)]
+        t0 = time.perf_counter()
+        c0 = time.process_time()
+        n = 0
+        stop = t0 + seconds + 1.0
+        while time.perf_counter() < stop:
+            for p in payloads:
+                pubs[n % n_keys].put(p)
+                n += 1
+        out.put({"messages": n, "seconds": time.perf_counter() - t0, "cpu_s": time.process_time() - c0})
+
+
+def bench_transport(seconds: float = 5.0, n_keys: int = 100) -> dict:
+    """messages/s a bare zenoh subscriber process drains from a publisher process (loopback TCP)."""
+    from hydromon.bus import free_tcp_endpoint
+
+    ctx = mp.get_context("spawn")
+    endpoint = free_tcp_endpoint()
+    ready, out_sub, out_pub = ctx.Queue(), ctx.Queue(), ctx.Queue()
+    sub = ctx.Process(target=_transport_sub, args=(endpoint, seconds, ready, out_sub), daemon=True)
+    sub.start()
+    try:
+        ready.get(timeout=60)
+        pub = ctx.Process(target=_transport_pub, args=(endpoint, seconds, n_keys, out_pub), daemon=True)
+        pub.start()
+        try:
+            rs = out_sub.get(timeout=seconds + 60)
+            rp = out_pub.get(timeout=seconds + 60)
+        finally:
+            pub.join(timeout=10)
+            if pub.is_alive():
+                pub.terminate()
+    finally:
+        sub.join(timeout=10)
+        if sub.is_alive():
+            sub.terminate()
+    return {"messages_per_s": rs["messages"] / rs["seconds"], "messages": rs["messages"],
+            "seconds": rs["seconds"], "subscriber_cpu": rs["cpu_s"] / rs["seconds"],
+            "publisher_cpu": rp["cpu_s"] / rp["seconds"], "keys": n_keys, "endpoint": "tcp/127.0.0.1"}
+
+
+# -- the whole run ------------------------------------------------------------------------------
+
+def machine_info() -> dict:
+    import numba
+
+    info = {"platform": platform.platform(), "machine": platform.machine(), "cpu_count": os.cpu_count(),
+            "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__}
+    from importlib.metadata import PackageNotFoundError, version
+    for dist in ("eclipse-zenoh", "mcap", "pydantic", "orjson"):
+        try:
+            info[dist.removeprefix("eclipse-")] = version(dist)
+        except PackageNotFoundError:  # pragma: no cover
+            info[dist.removeprefix("eclipse-")] = None
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    info["cpu"] = line.split(":", 1)[1].strip()
+                    break
+    except OSError:  # pragma: no cover
+        pass
+    return info
+
+
+@dataclass
+class BenchResult:
+    """Every figure of one run (throughputs in samples/s; see the module docstring)."""
+
+    core_single: float
+    core_batch: float
+    replay_direct: float
+    live: dict | None
+    transport_ceiling: float
+    baseline_naive: float
+    memory_per_rig: dict
+    speedup_vs_naive: float
+    details: dict = field(default_factory=dict)
+    timestamp: str = ""
+    machine: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class BenchOptions:
+    quick: bool = False
+    live: bool = True
+    live_seconds: float = 10.0
+    live_steps: tuple = (100, 200, 500, 1000, 2000, 5000)
+    transport_seconds: float = 5.0
+
+
+def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
+    """Measure every figure (see the module docstring); progress goes to stderr."""
+    q = opts.quick
+    duration = 5.0 if q else 60.0
+    _log(f"simulating a {duration:g} s paper-var run")
+    samples = paper_var_samples(duration)
+    details: dict = {"core_single": {}, "note": {}}
+    _log("core_single (batch 1)")
+    s1 = bench_core_single(samples, 1, repeats=1 if q else 3)
+    _log("core_single (batch 100)")
+    s100 = bench_core_single(samples, 100, repeats=1 if q else 3)
+    details["core_single"] = {"batch_1": s1, "batch_100": s100, "headline": "batch_1",
+                              "samples": len(samples)}
+    _log("baseline_naive")
+    naive_samples = samples if not q else samples[:300]
+    naive = bench_naive(naive_samples, repeats=1)
+    details["baseline_naive"] = {"samples": len(naive_samples),
+                                 "what": "identification per sample in numpy (no read-out, no grading)"}
+
+    n_rigs, ticks = (50, 200) if q else (1000, 1000)
+    _log(f"core_batch ({n_rigs} rigs x {ticks} ticks)")
+    from hydromon.fleetfile import spread_fleet
+    src_spec = spread_fleet(10, profile="paper-var", noise="realistic")
+    from hydromon.simnode import iter_blocks
+    fleet_sim = src_spec.build()
+    source = np.concatenate([b.samples for b in iter_blocks(fleet_sim, ticks, block=1000)], axis=1)
+    cb = bench_core_batch(source, n_rigs, ticks, repeats=1 if q else 3)
+    details["core_batch"] = {"rigs": n_rigs, "ticks": ticks, "batch": n_rigs}
+
+    _log("replay_direct")
+    rd = bench_replay_direct(n_rigs=2 if q else 10, duration=5.0 if q else 60.0, repeats=1 if q else 3)
+    details["replay_direct"] = rd
+
+    _log("memory_per_rig")
+    mem = bench_memory(1000 if q else 10_000)
+
+    _log("transport_ceiling")
+    tr = bench_transport(seconds=1.0 if q else opts.transport_seconds)
+    details["transport_ceiling"] = tr
+
+    live = None
+    if opts.live:
+        from hydromon.bench_live import bench_live
+        live = bench_live(opts.live_steps, seconds=opts.live_seconds)
+    else:
+        live = {"rigs": None, "reason": "skipped (--no-live)"}
+
+    return BenchResult(
+        core_single=s1, core_batch=cb, replay_direct=rd["samples_per_s"], live=live,
+        transport_ceiling=tr["messages_per_s"], baseline_naive=naive, memory_per_rig=mem,
+        speedup_vs_naive=s1 / naive, details=details,
+        timestamp=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"), machine=machine_info(),
+    )
+
+
+def to_json(result: BenchResult) -> dict:
+    return asdict(result)
+
+
+def append_history(result: BenchResult, path) -> None:
+    """Append the run as one JSON line to ``path`` (benchmarks/history.jsonl)."""
+    import orjson
+
+    with open(path, "ab") as f:
+        f.write(orjson.dumps(to_json(result), option=orjson.OPT_SERIALIZE_NUMPY) + b"\n")

@@ -1,0 +1,106 @@
+"""``hydromon bench``: the performance figures (a table, or one JSON document with --json)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+NAME = "bench"
+HELP = "measure the performance figures (core, batch, replay, naive baseline, memory, transport, live)"
+
+DEFAULT_HISTORY = Path(__file__).resolve().parents[2] / "benchmarks" / "history.jsonl"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--json", action="store_true", help="print one JSON document on stdout")
+    parser.add_argument("--quick", action="store_true", help="small sizes (CI, tests); numbers are rougher")
+    parser.add_argument("--no-live", action="store_true", help="skip the live sim + monitor step-up")
+    parser.add_argument("--live-seconds", type=float, default=10.0, metavar="S",
+                        help="window per rig count of the live step-up [s] (default 10; the issue's figure: 60)")
+    parser.add_argument("--live-rigs", default=None, metavar="N,N,...",
+                        help="rig counts of the live step-up (default 100,200,500,1000,2000,5000)")
+    parser.add_argument("--history", default=str(DEFAULT_HISTORY), metavar="FILE",
+                        help="append the run to this JSON-lines file ('' = do not) "
+                             "(default benchmarks/history.jsonl)")
+
+
+def _fmt(v, unit: str = "") -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        if abs(v) >= 100:
+            return f"{v:,.0f}{unit}"
+        return f"{v:.3g}{unit}"
+    return f"{v}{unit}"
+
+
+def print_table(res, stream=None) -> None:
+    """The run as a rich table (on stdout unless ``stream``)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    d = res.details
+    t = Table(title="hydromon bench", show_lines=False)
+    t.add_column("figure")
+    t.add_column("value", justify="right")
+    t.add_column("unit")
+    t.add_column("notes")
+    cs = d.get("core_single", {})
+    t.add_row("core_single", _fmt(res.core_single), "samples/s",
+              f"1 rig, batch 1 (live path); batch 100: {_fmt(cs.get('batch_100'))}/s")
+    t.add_row("core_batch", _fmt(res.core_batch), "samples/s",
+              f"{d.get('core_batch', {}).get('rigs')} rigs, one sample each per update")
+    t.add_row("replay_direct", _fmt(res.replay_direct), "samples/s",
+              f"in-memory MCAP, {d.get('replay_direct', {}).get('rigs')} rigs, decode+validate+update")
+    t.add_row("baseline_naive", _fmt(res.baseline_naive), "samples/s",
+              f"numpy per sample; core_single is {res.speedup_vs_naive:.1f}x")
+    m = res.memory_per_rig
+    t.add_row("memory_per_rig", _fmt(m["state_bytes"]), "bytes",
+              f"state arrays; RSS growth {_fmt(m['rss_bytes'])} B/rig over {m['rigs']} rigs")
+    tr = d.get("transport_ceiling", {})
+    t.add_row("transport_ceiling", _fmt(res.transport_ceiling), "messages/s",
+              f"bare zenoh sub, loopback tcp; cpu sub {_fmt(tr.get('subscriber_cpu'))}, "
+              f"pub {_fmt(tr.get('publisher_cpu'))} cores")
+    live = res.live or {}
+    if live.get("rigs"):
+        t.add_row("live", _fmt(live.get("samples_per_s")), "samples/s",
+                  f"{live['rigs']} rigs, lost {live.get('lost')}, p50 {_fmt(live.get('p50_ms'))} ms, "
+                  f"p99 {_fmt(live.get('p99_ms'))} ms")
+    else:
+        t.add_row("live", "-", "", str(live.get("reason", "not measured")))
+    console = Console(file=stream or sys.stdout)
+    console.print(t)
+    mi = res.machine
+    console.print(f"{mi.get('platform')}, {mi.get('cpu_count')} cpus ({mi.get('cpu', '?')}), python "
+                  f"{mi.get('python')}, numpy {mi.get('numpy')}, numba {mi.get('numba')}")
+    for step in live.get("steps", []) or []:
+        console.print(f"  live {step.get('rigs')} rigs: {step}")
+
+
+def run(args) -> int:
+    import orjson
+
+    from hydromon.bench import BenchOptions, append_history, run_bench, to_json
+
+    if not args.live_seconds > 0:
+        raise ValueError(f"--live-seconds {args.live_seconds!r} must be > 0")
+    kw = {}
+    if args.live_rigs:
+        try:
+            steps = tuple(int(x) for x in args.live_rigs.split(",") if x.strip())
+        except ValueError:
+            raise ValueError(f"--live-rigs {args.live_rigs!r}: expected N,N,...") from None
+        if not steps or min(steps) < 1:
+            raise ValueError(f"--live-rigs {args.live_rigs!r}: rig counts must be >= 1")
+        kw["live_steps"] = steps
+    opts = BenchOptions(quick=args.quick, live=not args.no_live, live_seconds=args.live_seconds, **kw)
+    res = run_bench(opts)
+    if args.history:
+        path = Path(args.history)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        append_history(res, path)
+    if args.json:
+        sys.stdout.write(orjson.dumps(to_json(res), option=orjson.OPT_SERIALIZE_NUMPY).decode() + "\n")
+    else:
+        print_table(res)
+    return 0

@@ -1,0 +1,278 @@
+"""The naive baseline of ``hydromon bench``: the identifier written the straightforward way.
+
+One rig, one Python call per sample, numpy on small arrays: every state-variable filter is
+``y = Cd x + Dd u; x = Ad x + Bd u`` with matrix products, every RLS/RIV update is the
+textbook ``K = P phi / (lam + phi' P phi)`` with ``np.outer``; no numba, no batching, no flat
+state row. It implements the same algorithm as ``monitor.identify.identify_step`` (see that
+module for the equations: SVF + RLS for the force and chamber equations, ARX + recursive IV
+for the valve, the online noise estimate and the residual statistics), so its throughput is
+an honest "what the compiled, batched kernel buys" reference; a test pins its estimates to
+the compiled path's.
+
+Only the per-sample identification is re-written here: ``estimates()`` packs the state into
+``monitor.layout``'s row and reads it out with ``monitor.estimates.estimates`` (the read-out
+runs once per evaluation, not per sample).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from monitor.identify import THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F, IdentOptions, Kernels
+from monitor.layout import (
+    N_CH, N_LAGS, N_STREAMS, O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
+    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_SLOW, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RING,
+    SG_HALF, STATE_SIZE,
+)
+from plant_sim.params import RigConfig
+
+__all__ = ["NaiveIdentifier"]
+
+
+def _orifice_z(xv: float, p1: float, p2: float, ps: float) -> tuple[float, float]:
+    """plant_sim.model.orifice_z in plain Python [Pa^0.5]."""
+    if xv >= 0.0:
+        return math.sqrt(2.0 * abs(ps - p1)) * np.sign(ps - p1), math.sqrt(2.0 * abs(p2))
+    return math.sqrt(2.0 * abs(p1)), math.sqrt(2.0 * abs(ps - p2)) * np.sign(ps - p2)
+
+
+def _forget(P: np.ndarray, lam: float, p_max: float) -> np.ndarray:
+    if lam < 1.0 and np.trace(P) * (1.0 / lam) <= p_max:
+        return P * (1.0 / lam)
+    return P
+
+
+class NaiveIdentifier:
+    """One rig's identifier, sample by sample in numpy: ``update(sample)``; ``estimates()``.
+
+    Parameters
+    ----------
+    config : RigConfig
+        The rig's constants (areas [m^2], volumes [m^3], p_s [Pa], F_L [N], K_p, K_f [V/m]).
+    options : IdentOptions
+        The identifier's hyperparameters (those of ``monitor.identify``).
+    """
+
+    def __init__(self, config: RigConfig | None = None, options: IdentOptions | None = None):
+        self.config = config or RigConfig()
+        self.options = options or IdentOptions()
+        c, o = self.config, self.options
+        k = Kernels(o, c.h)
+        self._kernels = k
+        self.h = c.h
+        # filters: Ad (3,3), Bd (3,), Cd (3,3), Dd (3,)
+        self.f_mats = (k.m_f[0], k.m_f[1][:, 0].copy(), k.m_f[2], k.m_f[3][:, 0].copy())
+        self.c_mats = (k.m_c[0], k.m_c[1][:, 0].copy(), k.m_c[2], k.m_c[3][:, 0].copy())
+        self.warm = math.ceil(o.warmup / c.h)
+        self.guard = math.ceil(o.reversal_guard / c.h)
+        self.n = 0
+        self.ring = np.zeros((RING, N_CH))
+        self.noise = np.zeros(4)
+        self.noise_n = 0.0
+        self.svf_f = np.zeros((3, 3))
+        self.svf_c = np.zeros((9, 3))
+        self.th_f, self.P_f = np.zeros(4), np.eye(4) * o.p0
+        self.th_c, self.P_c = np.zeros(4), np.eye(4) * o.p0
+        self.th_v, self.P_v = np.zeros(5), np.eye(5) * o.p0
+        self.xh = np.zeros(2)
+        self.rows = np.zeros(3)
+        self.slow = 0.0
+        self.bc = np.zeros(3)
+        self.res_w = np.zeros(N_STREAMS)
+        self.res_e2 = np.zeros(N_STREAMS)
+        self.res_hist = np.zeros((N_STREAMS, N_LAGS))
+        self.res_cov = np.zeros((N_STREAMS, N_LAGS))
+
+    # -- pieces -----------------------------------------------------------------------------
+
+    def _at(self, lag: int, ch: int) -> float:
+        return self.ring[(self.n - 1 - lag) % RING, ch]
+
+    def _rls(self, theta, P, phi, y, lam):
+        """Textbook RLS with a symmetrised P; returns (theta, P, e) or e = nan for a bad row."""
+        if not (np.all(np.isfinite(phi)) and math.isfinite(y)):
+            return theta, P, math.nan
+        Pphi = P @ phi
+        K = Pphi / (lam + phi @ Pphi)
+        e = y - phi @ theta
+        theta = theta + K * e
+        P = P - np.outer(K, Pphi)
+        P = 0.5 * (P + P.T)
+        return theta, _forget(P, lam, self.options.p_max), e
+
+    def _riv(self, theta, P, phi, z, y, lam):
+        """Recursive IV with instrument z; returns (theta, P, e) or e = nan for a bad row."""
+        if not (np.all(np.isfinite(phi)) and math.isfinite(y) and np.all(np.isfinite(z))):
+            return theta, P, math.nan
+        Pz = P @ z
+        denom = lam + phi @ Pz
+        if not abs(denom) > 1e-300:
+            return theta, P, math.nan
+        e = y - phi @ theta
+        K = Pz / denom
+        theta = theta + K * e
+        P = P - np.outer(K, phi @ P)
+        return theta, _forget(P, lam, self.options.p_max), e
+
+    def _residual(self, stream: int, e: float, lam: float) -> None:
+        self.res_w[stream] = lam * self.res_w[stream] + 1.0
+        self.res_e2[stream] = lam * self.res_e2[stream] + e * e
+        self.res_cov[stream] = lam * self.res_cov[stream] + e * self.res_hist[stream]
+        self.res_hist[stream] = np.concatenate(([e], self.res_hist[stream][:-1]))
+
+    def _noise_update(self) -> None:
+        # running mean of squared 4th differences (white noise of variance s^2 gives 70 s^2)
+        if self.n - 1 < 4:
+            return
+        self.noise_n += 1.0
+        w = 1.0 / min(self.noise_n, self.options.noise_window)
+        last5 = np.array([[self._at(lag, ch) for ch in range(1, 5)] for lag in range(5)])
+        d4 = np.array([1.0, -4.0, 6.0, -4.0, 1.0]) @ last5
+        v = d4 * d4
+        if self.noise_n > 50.0:
+            v = np.where(v > 100.0 * self.noise, 100.0 * self.noise, v)
+        self.noise = self.noise + w * (v - self.noise)
+
+    @staticmethod
+    def _svf(mats, x, u):
+        Ad, Bd, Cd, Dd = mats
+        return Ad @ x + Bd * u, Cd @ x + Dd * u
+
+    @staticmethod
+    def _svf_init(mats, u0):
+        Ad, Bd, _, _ = mats
+        return np.linalg.solve(np.eye(3) - Ad, Bd * u0)
+
+    def _valve(self) -> None:
+        c, o = self.config, self.options
+        du = np.array([c.K_p * (self._at(j, 0) - c.K_f * self._at(j, 1)) for j in range(3)])
+        y = self._at(0, 4) / X5_NOM
+        phi = np.concatenate(([-self._at(1, 4) / X5_NOM, -self._at(2, 4) / X5_NOM], du))
+        a1, a2 = self.th_v[0], self.th_v[1]
+        stable = abs(a2) < 1.0 and abs(a1) < 1.0 + a2
+        use_iv = o.instrumental_variables and self.rows[2] >= o.iv_start and stable
+        xh1, xh2 = self.xh
+        if use_iv:
+            z = np.concatenate(([-xh1, -xh2], du))
+        else:
+            z = phi.copy()
+            xh1, xh2 = -phi[0], -phi[1]
+        xh = -a1 * xh1 - a2 * xh2 + self.th_v[2:] @ du
+        if not (use_iv and math.isfinite(xh)):
+            xh = y
+        self.xh = np.array([xh, xh1])
+        step = abs(self._at(0, 0) - 2.0 * self._at(1, 0) + self._at(2, 0)) > o.step_tol
+        if step:
+            return
+        self.th_v, self.P_v, e = self._riv(self.th_v, self.P_v, phi, z, y, o.lam)
+        if math.isfinite(e):
+            self.rows[2] += 1.0
+            self._residual(3, y - phi @ self.th_v, o.lam)
+
+    # -- the streaming contract -------------------------------------------------------------
+
+    def update(self, sample) -> None:
+        """Consume one sample (ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m])."""
+        c, o = self.config, self.options
+        n = self.n
+        self.ring[n % RING] = sample
+        self.n = n + 1
+        lam = o.lam
+        self._noise_update()
+        if n >= 2:
+            self._valve()
+        if n < 2 * SG_HALF:
+            return
+        j = np.arange(-SG_HALF, SG_HALF + 1, dtype=float)
+        x1_win = np.array([self._at(SG_HALF - int(i), 1) for i in j])
+        v = (j @ x1_win) / ((j @ j) * self.h)
+        c1, c3, c4, c5 = (self._at(SG_HALF, ch) for ch in (1, 2, 3, 4))
+        a1, a2 = c.A1, c.A2
+        q1 = a1 * c3 - a2 * c4 - c.F_L
+        sg = float(np.sign(v))
+        z1, z2 = _orifice_z(c5, c3, c4, c.p_s)
+        v_noise = 3.0 * math.sqrt(self.noise[0] / 70.0 / ((j @ j) * self.h * self.h))
+        self.slow = 0.0 if abs(v) < max(o.v_stick, v_noise) else self.slow + 1.0
+        u_f = np.array([c1, q1, sg])
+        u_c = np.array([c1, c3, c4, c1 * c3, c1 * c4, v * c3, v * c4, c5 * z1, c5 * z2])
+        if n == 2 * SG_HALF:
+            self.svf_f = np.array([self._svf_init(self.f_mats, u) for u in u_f])
+            self.svf_c = np.array([self._svf_init(self.c_mats, u) for u in u_c])
+        yf = np.empty((3, 3))
+        yc = np.empty((9, 3))
+        for i in range(3):
+            self.svf_f[i], yf[i] = self._svf(self.f_mats, self.svf_f[i], u_f[i])
+        for i in range(9):
+            self.svf_c[i], yc[i] = self._svf(self.c_mats, self.svf_c[i], u_c[i])
+        if n - 2 * SG_HALF < self.warm:
+            return
+
+        # force balance (eq 24-27), skipped while a reversal is inside the filter's memory
+        phi = np.array([yf[0, 2], yf[0, 1], yf[2, 0], yf[0, 0]]) * THETA_NOM_F / Y_NOM_F
+        y = yf[1, 0] / Y_NOM_F
+        if self.slow >= self.guard:
+            self.th_f, self.P_f, e = self._rls(self.th_f, self.P_f, phi, y, lam)
+            if math.isfinite(e):
+                self.rows[0] += 1.0
+                self.bc[0] = lam * self.bc[0] + 1.0
+                self._residual(0, y - phi @ self.th_f, lam)
+
+        # chambers (eq 28-38): two rows per sample, each forgetting by sqrt(lam)
+        lam2 = math.sqrt(lam)
+        v1 = c.V10 + a1 * c1
+        v2 = c.V20 - a2 * c1
+        s1 = THETA_NOM_C / Y_NOM_C
+        dp = yc[1, 0] - yc[2, 0]
+        phi = np.array([c.V10 * yc[1, 1] + a1 * (yc[3, 1] - yc[5, 0]), -yc[7, 0], dp, yc[1, 0]]) * s1
+        y = -a1 * yc[0, 1] / Y_NOM_C
+        self.th_c, self.P_c, e = self._rls(self.th_c, self.P_c, phi, y, lam2)
+        ok = math.isfinite(e)
+        if ok:
+            self.bc[1] = lam2 * self.bc[1] + v1 * v1
+            self.bc[2] = lam2 * self.bc[2]
+            self._residual(1, y - phi @ self.th_c, lam2)
+        phi = np.array([c.V20 * yc[2, 1] - a2 * (yc[4, 1] - yc[6, 0]), yc[8, 0], -dp, yc[2, 0]]) * s1
+        y = a2 * yc[0, 1] / Y_NOM_C
+        self.th_c, self.P_c, e = self._rls(self.th_c, self.P_c, phi, y, lam2)
+        if ok and math.isfinite(e):
+            self.rows[1] += 1.0
+            self.bc[1] = lam2 * self.bc[1]
+            self.bc[2] = lam2 * self.bc[2] + v2 * v2
+            self._residual(2, y - phi @ self.th_c, lam2)
+
+    # -- read-out ---------------------------------------------------------------------------
+
+    def state_row(self) -> np.ndarray:
+        """The state packed into ``monitor.layout``'s flat row (for the shared read-out)."""
+        st = np.zeros(STATE_SIZE)
+        st[O_N] = self.n
+        # the compiled kernel's ring slot of sample k is k % RING: same as ours
+        st[O_RING:O_RING + RING * N_CH] = self.ring.ravel()
+        st[O_SVF_F:O_SVF_F + 9] = self.svf_f.ravel()
+        st[O_SVF_C:O_SVF_C + 27] = self.svf_c.ravel()
+        st[O_TH_F:O_TH_F + 4], st[O_P_F:O_P_F + 16] = self.th_f, self.P_f.ravel()
+        st[O_TH_C:O_TH_C + 4], st[O_P_C:O_P_C + 16] = self.th_c, self.P_c.ravel()
+        st[O_TH_V:O_TH_V + 5], st[O_P_V:O_P_V + 25] = self.th_v, self.P_v.ravel()
+        st[O_XH:O_XH + 2] = self.xh
+        st[O_ROWS:O_ROWS + 3] = self.rows
+        st[O_NOISE:O_NOISE + 4] = self.noise
+        st[O_NOISE_N] = self.noise_n
+        st[O_SLOW] = self.slow
+        st[O_BC:O_BC + 3] = self.bc
+        st[O_RES_W:O_RES_W + N_STREAMS] = self.res_w
+        st[O_RES_E2:O_RES_E2 + N_STREAMS] = self.res_e2
+        st[O_RES_HIST:O_RES_HIST + N_STREAMS * N_LAGS] = self.res_hist.ravel()
+        st[O_RES_COV:O_RES_COV + N_STREAMS * N_LAGS] = self.res_cov.ravel()
+        return st
+
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """(params, std_errors), 11 each in PARAM_NAMES order (SI), by the shared read-out."""
+        from monitor.estimates import estimates
+
+        k = self._kernels
+        p = np.empty(11)
+        s = np.empty(11)
+        estimates(self.state_row(), k.hyper, k.g_f, k.g_c, p, s)
+        return p, s

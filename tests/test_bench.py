@@ -1,0 +1,98 @@
+"""hydromon bench: the command's JSON contract, and the naive baseline pinned to the compiled path.
+
+No timing assertions: the figures themselves are measured by ``hydromon bench``.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hydromon.bench import paper_var_samples
+from hydromon.naive import NaiveIdentifier
+from monitor.identify import IdentOptions
+from monitor.pipeline import Fleet
+from plant_sim.params import RigConfig
+
+KEYS = ("core_single", "core_batch", "replay_direct", "live", "transport_ceiling", "baseline_naive",
+        "memory_per_rig")
+
+
+def _run_compiled(samples, options=None, config=None):
+    fleet = Fleet(options=options)
+    fleet.add_rig("rig", config)
+    fleet.update(np.zeros(len(samples), np.int64), samples)
+    return fleet
+
+
+@pytest.fixture(scope="module")
+def clean_run():
+    return paper_var_samples(8.0, noise="none")
+
+
+def test_naive_agrees_with_compiled_estimates(clean_run):
+    fleet = _run_compiled(clean_run)
+    naive = NaiveIdentifier()
+    for row in clean_run:
+        naive.update(row)
+    p_naive, _ = naive.estimates()
+    p_comp = np.array(list(fleet.estimate(0).params.values()))
+    assert np.all(np.isfinite(p_comp))
+    np.testing.assert_allclose(p_naive, p_comp, rtol=1e-6, atol=0)
+
+
+def test_naive_state_matches_compiled_state_row(clean_run):
+    fleet = _run_compiled(clean_run[:600])
+    naive = NaiveIdentifier()
+    for row in clean_run[:600]:
+        naive.update(row)
+    st = naive.state_row()
+    np.testing.assert_allclose(st, fleet.states[0], rtol=1e-6, atol=0)
+
+
+def test_naive_follows_options_and_config():
+    # a different forgetting factor, filter bandwidths and rig: the two still agree
+    opts = IdentOptions(lam=0.999, a_force=30.0, a_chamber=20.0, warmup=0.2)
+    cfg = RigConfig(A1=0.006, F_L=2000.0)
+    from plant_sim.noise import noise_model
+    from plant_sim.profiles import PaperVariable
+    from plant_sim.simulate import simulate
+
+    s = simulate(PaperVariable(), 6.0, config=cfg, noise=noise_model("realistic"), seed=3).samples
+    fleet = _run_compiled(s, opts, cfg)
+    naive = NaiveIdentifier(cfg, opts)
+    for row in s:
+        naive.update(row)
+    np.testing.assert_allclose(naive.estimates()[0], np.array(list(fleet.estimate(0).params.values())),
+                               rtol=1e-6)
+
+
+def test_bench_quick_json(tmp_path):
+    hist = tmp_path / "history.jsonl"
+    out = subprocess.run([sys.executable, "-m", "hydromon.cli", "bench", "--quick", "--no-live", "--json",
+                          "--history", str(hist)], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)  # exactly one JSON document on stdout
+    for key in KEYS:
+        assert key in doc
+    for key in ("core_single", "core_batch", "replay_direct", "transport_ceiling", "baseline_naive"):
+        assert isinstance(doc[key], float) and doc[key] > 0, (key, doc[key])
+    assert doc["memory_per_rig"]["state_bytes"] > 0 and doc["memory_per_rig"]["rss_bytes"] > 0
+    assert doc["live"]["rigs"] is None and doc["live"]["reason"]
+    lines = hist.read_text().splitlines()
+    assert len(lines) == 1
+    rec = json.loads(lines[0])
+    assert rec["timestamp"] and rec["core_single"] == doc["core_single"]
+    for k in ("platform", "cpu_count", "python", "numpy", "numba"):
+        assert rec["machine"][k]
+
+
+def test_bench_rejects_bad_flags():
+    from hydromon.cli import main
+
+    assert main(["bench", "--live-seconds", "0", "--history", ""]) == 2
+    assert main(["bench", "--live-rigs", "10,x", "--history", ""]) == 2
