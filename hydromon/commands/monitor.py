@@ -1,0 +1,47 @@
+"""``hydromon monitor``: the monitor node (rig samples -> health verdicts on the bus)."""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+
+from hydromon.bus import add_bus_arguments, session_from_args
+
+NAME = "monitor"
+HELP = "grade every rig on <namespace>/rig/*/sample and publish <namespace>/rig/<id>/health"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="stop after this many seconds (default: until Ctrl-C / SIGTERM)")
+    parser.add_argument("--node", default="monitor", metavar="NAME",
+                        help="node name of the liveliness token <namespace>/monitor/NAME (default monitor)")
+    parser.add_argument("--eval-every", type=int, default=10, metavar="N",
+                        help="a health message every N samples of a rig (default 10)")
+    add_bus_arguments(parser)
+
+
+def run(args) -> int:
+    from hydromon.monitornode import MonitorCore, RateLimitedLog, run_monitor
+
+    if args.duration is not None and not args.duration > 0:
+        raise ValueError(f"--duration {args.duration} must be > 0 s")
+    core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog())
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with session_from_args(args) as session:
+            print(f"hydromon monitor: node {args.node!r} on {args.namespace}/rig/*/sample", file=sys.stderr,
+                  flush=True)
+            run_monitor(session, namespace=args.namespace, node_name=args.node, stop_event=stop,
+                        duration=args.duration, core=core)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    c = core.counters
+    rejected = ", ".join(f"{k} {v}" for k, v in c.rejected.items() if v) or "none"
+    print(f"hydromon monitor: {len(core.rigs)} rig(s), {c.accepted} samples, {c.health} health messages; "
+          f"rejected: {rejected}; dropped seq {c.dropped_seq}, gaps {c.gaps} ({c.missing} samples missing), "
+          f"restarts {c.restarts}", file=sys.stderr)
+    return 0

@@ -1,0 +1,286 @@
+"""Monitor node: edge validation and sequence handling of MonitorCore (in memory), and the
+node on a real zenoh session on loopback (network)."""
+
+from __future__ import annotations
+
+import threading
+
+import orjson
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hydromon.contract import GRADES, Health, RigConfig, Sample, health_key
+from hydromon.fleetfile import default_fleet, FleetSpec
+from hydromon.monitornode import REJECT_REASONS, MonitorCore, decode_json, parse_sample, Rejected
+from hydromon.simnode import iter_blocks
+from plant_sim.degradation import TABLE4_PAPER_GRADES
+
+NS = "hydro"
+
+
+def sample_bytes(seq, t, row):
+    return orjson.dumps({"seq": seq, "t": t, "ug": row[0], "x1": row[1], "x3": row[2], "x4": row[3],
+                         "x5": row[4]})
+
+
+def fleet_messages(spec: FleetSpec, seconds: float, ns: str = NS) -> list[tuple[str, bytes]]:
+    """What the sim node would publish: configs, then samples interleaved rig by rig."""
+    fleet = spec.build()
+    msgs = [(f"{ns}/rig/{i}/config", orjson.dumps(c.model_dump(mode="json")))
+            for i, c in zip(spec.ids, fleet.configs)]
+    for blk in iter_blocks(fleet, int(round(seconds / fleet.h)), block=200):
+        rows = blk.samples.tolist()
+        for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
+            for r, rig in enumerate(spec.ids):
+                msgs.append((f"{ns}/rig/{rig}/sample", sample_bytes(seq, t, rows[r][j])))
+    return msgs
+
+
+SPEC = default_fleet()
+CLEAN = fleet_messages(SPEC, 6.0)
+
+
+def by_rig(health):
+    out = {}
+    for key, payload in health:
+        out.setdefault(key.split("/")[2], []).append(payload)
+    return out
+
+
+def run_core(msgs, chunk=None, **kw):
+    core = MonitorCore(NS, **kw)
+    if chunk is None:
+        return core, core.process(msgs)
+    out = []
+    for i in range(0, len(msgs), chunk):
+        out += core.process(msgs[i:i + chunk])
+    return core, out
+
+
+@pytest.fixture(scope="module")
+def clean_run():
+    return run_core(CLEAN)
+
+
+def test_clean_run_gives_valid_health_and_true_grades(clean_run):
+    core, health = clean_run
+    c = core.counters
+    assert c.accepted == 600 * 5 and c.rejected_total == 0 and c.dropped_seq == 0 and c.gaps == 0
+    rigs = by_rig(health)
+    assert sorted(rigs) == sorted(SPEC.ids)
+    for rig, payloads in rigs.items():
+        assert len(payloads) == 60  # one every 10 samples
+        hs = [Health.model_validate_json(p) for p in payloads]
+        assert [h.seq for h in hs] == list(range(9, 600, 10))
+        assert all(h.status in ("converging", "ok") for h in hs)
+        for h in hs:
+            assert (h.level is None) == (h.grade == "unknown")
+            if h.level is not None:
+                assert GRADES[h.level] == h.grade
+        last = hs[-1]
+        assert last.status == "ok"
+        assert last.grade == TABLE4_PAPER_GRADES[int(rig[-1])]
+        assert core.latest[rig] == payloads[-1]
+        assert set(last.param_grades) == set(core.fleet.graded)
+
+
+def test_batching_does_not_change_health():
+    _, whole = run_core(CLEAN[:2000])
+    assert len(whole) > 20
+    for chunk in (1, 7, 333):
+        assert run_core(CLEAN[:2000], chunk=chunk)[1] == whole
+
+
+GOOD = {"seq": 5, "t": 0.05, "ug": 0.1, "x1": 0.01, "x3": 5e6, "x4": 6e6, "x5": 1e-5}
+
+
+def _with(**kw):
+    d = {**GOOD, **kw}
+    return orjson.dumps({k: v for k, v in d.items() if v is not _DROP})
+
+
+_DROP = object()
+# (reason, payload) for a sample key; every kind of malformed payload
+BAD_SAMPLES = [
+    ("not-json", b"{not json"),
+    ("not-json", b""),
+    ("not-json", b"\xff\xfe\x00"),
+    ("missing-field", _with(x5=_DROP)),
+    ("missing-field", _with(seq=_DROP)),
+    ("wrong-type", _with(x1="0.01")),
+    ("wrong-type", _with(seq=3.0)),
+    ("wrong-type", _with(ug=True)),
+    ("wrong-type", _with(x3=None)),
+    ("wrong-type", b"[1, 2, 3]"),
+    ("wrong-type", b"42"),
+    ("non-finite", _with(x1=0.123456).replace(b"0.123456", b"NaN")),
+    ("non-finite", _with(x3=0.123456).replace(b"0.123456", b"Infinity")),
+    ("non-finite", _with(x4=0.123456).replace(b"0.123456", b"-Infinity")),
+    ("non-finite", _with(t=0.123456).replace(b"0.123456", b"1e400")),
+    ("non-finite", _with(x1="nan")),
+    ("non-finite", _with(ug="-inf")),
+    ("unknown-field", _with(z=1.0)),
+    ("bad-value", _with(seq=-1)),
+]
+BAD_KEYS = [
+    ("bad-rig-id", "hydro/rig/bad.id/sample"),
+    ("bad-rig-id", "hydro/rig/" + "a" * 65 + "/sample"),
+    ("bad-rig-id", "hydro/rig/bad id/config"),
+    ("bad-key", "hydro/rig/table4-g1/other"),
+    ("bad-key", "other/rig/table4-g1/sample"),
+    ("bad-key", "hydro/rig/a/b/sample"),
+    ("bad-key", "hydro/rig/table4-g1"),
+]
+BAD_CONFIGS = [
+    ("bad-value", orjson.dumps({**RigConfig().model_dump(), "A1": -1.0})),
+    ("bad-value", orjson.dumps({**RigConfig().model_dump(), "sample_rate": 50.0})),
+    ("non-finite", orjson.dumps({**RigConfig().model_dump(), "p_s": 0.5}).replace(b"0.5", b"NaN")),
+    ("wrong-type", orjson.dumps({**RigConfig().model_dump(), "p_s": "high"})),
+    ("unknown-field", orjson.dumps({**RigConfig().model_dump(), "colour": 1.0})),
+    ("not-json", b"{"),
+]
+
+
+def test_every_malformed_kind_is_counted_and_good_rigs_are_unaffected(clean_run):
+    _, clean = clean_run
+    victim = "table4-g5"
+    expected = {r: 0 for r in REJECT_REASONS}
+    msgs, n_dup, n_ooo, bad_at = [], 0, 0, []
+    last_payload: dict[str, list] = {}
+    junk_i = 0
+    for i, (key, payload) in enumerate(CLEAN):
+        msgs.append((key, payload))
+        rig = key.split("/")[2]
+        hist = last_payload.setdefault(rig, [])
+        hist.append(payload)
+        if i < 10 or not key.endswith("/sample"):
+            continue
+        if i % 97 == 0:  # a duplicate of the sample just sent
+            msgs.append((key, payload))
+            n_dup += 1
+        elif i % 89 == 0 and len(hist) > 5:  # an old sample arriving late
+            msgs.append((key, hist[-5]))
+            n_ooo += 1
+        elif rig == victim and len(hist) % 23 == 0:  # a malformed payload on the victim's key
+            reason, bad = BAD_SAMPLES[junk_i % len(BAD_SAMPLES)]
+            junk_i += 1
+            msgs.append((key, bad))
+            expected[reason] += 1
+            bad_at.append(orjson.loads(payload)["seq"])
+        elif i % 61 == 0:
+            reason, bad_key = BAD_KEYS[i % len(BAD_KEYS)]
+            msgs.append((bad_key, sample_bytes(3, 0.03, [0.0, 0.0, 1e6, 1e6, 0.0])))
+            expected[reason] += 1
+        elif i % 71 == 0:
+            reason, bad = BAD_CONFIGS[i % len(BAD_CONFIGS)]
+            msgs.append((f"hydro/rig/{rig}/config", bad))
+            expected[reason] += 1
+    assert junk_i >= len(BAD_SAMPLES)  # every kind was injected at least once
+    # a rig that only ever sends junk gets no row and no health
+    for reason, bad in BAD_SAMPLES:
+        msgs.insert(len(msgs) // 2, ("hydro/rig/junk-rig/sample", bad))
+        expected[reason] += 1
+    msgs.append((health_key("table4-g1"), b"{}"))  # health is our output kind: ignored
+
+    core, health = run_core(msgs, chunk=250)
+    c = core.counters
+    assert c.rejected == expected
+    assert (c.duplicate, c.out_of_order, c.gaps, c.restarts, c.ignored) == (n_dup, n_ooo, 0, 0, 1)
+    assert c.accepted == 3000 and "junk-rig" not in core.rigs and sorted(core.rigs) == sorted(SPEC.ids)
+    got, want = by_rig(health), by_rig(clean)
+    for rig in SPEC.ids:
+        if rig != victim:
+            assert got[rig] == want[rig]
+    # the victim: the same verdicts, flagged bad-input in exactly the windows with junk
+    windows = {(s + 1) // 10 * 10 + 9 for s in bad_at}  # junk after sample s: in the next window
+    assert len(got[victim]) == len(want[victim])
+    for g, w in zip(got[victim], want[victim]):
+        g, w = orjson.loads(g), orjson.loads(w)
+        if g["seq"] in windows:
+            assert g["status"] == "bad-input"
+            w["status"] = "bad-input"
+        assert g == w
+    assert sum(orjson.loads(g)["status"] == "bad-input" for g in got[victim]) == len(windows)
+
+
+def test_a_gap_restarts_the_filters_and_marks_health_stale(clean_run):
+    _, clean = clean_run
+    rig = "table4-g2"
+    lost = set(range(400, 415))
+    msgs = [(k, p) for k, p in CLEAN
+            if not (k == f"hydro/rig/{rig}/sample" and orjson.loads(p)["seq"] in lost)]
+    core, health = run_core(msgs)
+    assert (core.counters.gaps, core.counters.missing, core.counters.accepted) == (1, 15, 3000 - 15)
+    got, want = by_rig(health), by_rig(clean)
+    for other in SPEC.ids:
+        if other != rig:
+            assert got[other] == want[other]
+    hs = [Health.model_validate_json(p) for p in got[rig]]
+    # windows count the rig's samples, so after the gap they end at seq 424, 434, ...; the
+    # first sample after the gap is 415, the window ending at 424 holds only 9 samples after
+    # it -> stale; by 434 the rig has run 10 clean samples after it
+    status = {h.seq: h.status for h in hs}
+    assert 409 not in status and status[399] == "ok"
+    assert status[424] == "stale" and status[434] == "ok"
+    assert [h.seq for h in hs if h.status == "stale"] == [424]
+    assert hs[-1].grade == TABLE4_PAPER_GRADES[2]
+
+
+def test_seq_back_to_zero_is_a_restart_and_gives_the_clean_verdicts_again(clean_run):
+    _, clean = clean_run
+    first = CLEAN[:5 + 5 * 300]  # configs + 3 s
+    core, health = run_core(first + CLEAN[5:])
+    assert core.counters.restarts == 5 and core.counters.dropped_seq == 0
+    got, want = by_rig(health), by_rig(clean)
+    for rig in SPEC.ids:
+        assert got[rig][30:] == want[rig]  # 30 health messages before the restart
+
+
+def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
+    rig = "table4-g1"
+    changed = RigConfig(p_s=13e6)
+    msgs = CLEAN[:1005] + [(f"hydro/rig/{rig}/config", orjson.dumps(RigConfig().model_dump()))] + CLEAN[1005:2005]
+    core, health = run_core(msgs)
+    assert core.counters.config_changes == 0 and health == run_core(CLEAN[:2005])[1]
+    msgs = CLEAN[:1005] + [(f"hydro/rig/{rig}/config", orjson.dumps(changed.model_dump()))] + CLEAN[1005:2005]
+    core, health = run_core(msgs)
+    assert core.counters.config_changes == 1 and core.configs[rig] == changed
+    seqs = [orjson.loads(p)["seq"] for k, p in health if k == health_key(rig)]
+    # 200 samples before the change (20 verdicts), the count restarts at the change
+    assert seqs[:21] == list(range(9, 200, 10)) + [209]
+    assert [orjson.loads(p)["seq"] for k, p in health if k == health_key("table4-g2")] == list(range(9, 400, 10))
+
+
+def test_health_payloads_hold_only_finite_numbers():
+    # early verdicts have equations without rows: infinite standard errors are left out
+    core, health = run_core(CLEAN[:5 + 5 * 40])
+    first = orjson.loads(health[0][1])
+    assert first["status"] == "converging" and first["level"] is None and first["grade"] == "unknown"
+    for _, p in health:
+        Health.model_validate_json(p)  # allow_inf_nan=False: would fail on any NaN/inf
+    assert any(len(orjson.loads(p)["std_errors"]) < 11 for _, p in health)
+
+
+SAMPLE_VALUES = st.one_of(st.integers(-3, 10**20), st.floats(allow_nan=True, allow_infinity=True),
+                          st.booleans(), st.none(), st.text(max_size=4),
+                          st.sampled_from(["nan", "inf", "-Infinity", "1.5"]))
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.fixed_dictionaries({}, optional={k: SAMPLE_VALUES for k in Sample.model_fields}),
+       extra=st.booleans())
+def test_parse_sample_accepts_exactly_what_the_contract_model_accepts(values, extra):
+    if extra:
+        values = {**values, "extra": 1}
+    try:
+        s = Sample.model_validate(values)
+        want = (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5)
+    except ValueError:
+        want = None
+    try:
+        got = parse_sample(values)
+    except Rejected as exc:
+        assert exc.reason in REJECT_REASONS
+        got = None
+    assert got == want
