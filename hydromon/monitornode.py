@@ -480,10 +480,11 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             if on_health is not None:
                 on_health(key, payload)
 
-    token = session.liveliness().declare_token(liveliness_key(node_name, namespace))
-    queryable = session.declare_queryable(f"{namespace}/rig/*/health", answer)
     sub_c = session.declare_subscriber(f"{namespace}/rig/*/config", zenoh.handlers.FifoChannel(capacity))
     sub_s = session.declare_subscriber(f"{namespace}/rig/*/sample", zenoh.handlers.FifoChannel(capacity))
+    queryable = session.declare_queryable(f"{namespace}/rig/*/health", answer)
+    # last: a peer that sees the token has seen the subscribers declared before it
+    token = session.liveliness().declare_token(liveliness_key(node_name, namespace))
 
     def drain() -> int:
         batch = []

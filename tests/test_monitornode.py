@@ -4,16 +4,19 @@ node on a real zenoh session on loopback (network)."""
 from __future__ import annotations
 
 import threading
+import time
 
 import orjson
 import pytest
+import zenoh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hydromon.bus import free_tcp_endpoint, open_session
 from hydromon.contract import GRADES, Health, RigConfig, Sample, health_key
-from hydromon.fleetfile import default_fleet, FleetSpec
-from hydromon.monitornode import REJECT_REASONS, MonitorCore, decode_json, parse_sample, Rejected
-from hydromon.simnode import iter_blocks
+from hydromon.fleetfile import FleetSpec, default_fleet
+from hydromon.monitornode import REJECT_REASONS, MonitorCore, Rejected, parse_sample, run_monitor
+from hydromon.simnode import iter_blocks, run_sim
 from plant_sim.degradation import TABLE4_PAPER_GRADES
 
 NS = "hydro"
@@ -284,3 +287,61 @@ def test_parse_sample_accepts_exactly_what_the_contract_model_accepts(values, ex
         assert exc.reason in REJECT_REASONS
         got = None
     assert got == want
+
+
+# -- on a real zenoh session on loopback --------------------------------------------------------
+
+def _wait(pred, timeout_s: float, what: str) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not pred():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+        time.sleep(0.01)
+
+
+@pytest.mark.network
+@pytest.mark.timeout(90)
+def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
+    ep = free_tcp_endpoint()
+    seconds = 8.0
+    n = int(seconds * 100)
+    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as sim_s, \
+            open_session("peer", connect=[ep]) as obs_s:
+        sub = obs_s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(100000))
+        stop, result = threading.Event(), {}
+        mon = threading.Thread(target=lambda: result.update(core=run_monitor(mon_s, stop_event=stop, node_name="m1")),
+                               daemon=True)
+        mon.start()
+        try:
+            # the token is declared after the subscriptions: once the sim sees it, nothing is lost
+            _wait(lambda: any(r.ok is not None for r in sim_s.liveliness().get("hydro/monitor/*", timeout=1.0)),
+                  30, "the monitor's liveliness token")
+            stats = run_sim(sim_s, SPEC, rate=0, duration=seconds)
+            assert stats.samples == n
+            got: dict[str, list[Health]] = {}
+
+            def drain():
+                while (m := sub.try_recv()) is not None:
+                    got.setdefault(str(m.key_expr).split("/")[2], []).append(
+                        Health.model_validate_json(m.payload.to_bytes()))
+                return len(got) == 5 and all(h[-1].seq == n - 1 for h in got.values())
+
+            _wait(drain, 60, "the last health message of every rig")
+            replies = [r.ok for r in obs_s.get("hydro/rig/*/health", timeout=5.0) if r.ok is not None]
+            one = [r.ok for r in obs_s.get("hydro/rig/table4-g4/health", timeout=5.0) if r.ok is not None]
+        finally:
+            stop.set()
+            mon.join(30)
+        assert not mon.is_alive()
+    core = result["core"]
+    c = core.counters
+    assert c.accepted == 5 * n and c.gaps == 0 and c.dropped_seq == 0 and c.rejected_total == 0
+    assert c.configs == 5
+    for rig, hs in got.items():
+        assert [h.seq for h in hs] == list(range(9, n, 10))  # every verdict, in order
+        assert hs[-1].status == "ok" and hs[-1].grade == TABLE4_PAPER_GRADES[int(rig[-1])]
+    assert sorted(str(r.key_expr) for r in replies) == sorted(health_key(i) for i in SPEC.ids)
+    for r in replies:
+        rig = str(r.key_expr).split("/")[2]
+        assert Health.model_validate_json(r.payload.to_bytes()) == got[rig][-1]
+    assert [str(r.key_expr) for r in one] == [health_key("table4-g4")]
