@@ -109,8 +109,8 @@ class IdentOptions(BaseModel):
     bias_compensation: bool = True
     instrumental_variables: bool = True
     iv_start: int = Field(100, ge=10)
-    p0: float = Field(1e6, gt=0)
-    p_max: float = Field(1e10, gt=0)
+    p0: float = Field(1e9, gt=0)
+    p_max: float = Field(1e13, gt=0)
     noise_window: int = Field(2000, ge=10)
     min_rows: int = Field(300, ge=1)
     v_stick: float = Field(2e-3, ge=0)
