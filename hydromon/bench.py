@@ -34,15 +34,20 @@ from __future__ import annotations
 import datetime as _dt
 import gc
 import io
+import math
 import multiprocessing as mp
 import os
 import platform
+import re
+import signal
 import statistics
+import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+import orjson
 
 __all__ = [
     "BenchResult", "paper_var_samples", "bench_core_single", "bench_core_batch", "bench_replay_direct",
@@ -404,7 +409,6 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
 
     live = None
     if opts.live:
-        from hydromon.bench_live import bench_live
         live = bench_live(opts.live_steps, seconds=opts.live_seconds)
     else:
         live = {"rigs": None, "reason": "skipped (--no-live)"}
@@ -427,3 +431,187 @@ def append_history(result: BenchResult, path) -> None:
 
     with open(path, "ab") as f:
         f.write(orjson.dumps(to_json(result), option=orjson.OPT_SERIALIZE_NUMPY) + b"\n")
+
+
+# -- live: hydromon sim + hydromon monitor as processes -----------------------------------------
+
+_MON_SUMMARY = re.compile(r"(\d+) rig\(s\), (\d+) samples, (\d+) health messages; rejected: (.*); "
+                          r"dropped seq (\d+), gaps (\d+) \((\d+) samples missing\)")
+_SIM_SUMMARY = re.compile(r"(\d+) samples x (\d+) rig\(s\), (\d+) messages in ([\d.]+) s; max lateness ([\d.]+) ms")
+
+
+def _cpu_seconds(pid: int) -> float:
+    """utime + stime of a process (all its threads) [s], from /proc/<pid>/stat."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _wait_for(path: str, text: str, proc, timeout: float) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        with open(path) as f:
+            if text in f.read():
+                return
+        if proc.poll() is not None:
+            with open(path) as f:
+                raise RuntimeError(f"process exited ({proc.returncode}) before {text!r}: {f.read()[-2000:]}")
+        time.sleep(0.05)
+    raise RuntimeError(f"timed out waiting for {text!r} in {path}")
+
+
+def _stop(proc, timeout: float = 30.0) -> None:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(10)
+
+
+def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: float = 1.0,
+              eval_every: int = 10, h: float = 0.01, max_p99_ms: float = 50.0) -> dict:
+    """Run ``hydromon sim --rigs N --rate 1`` and ``hydromon monitor`` as processes on loopback.
+
+    Topology: this process opens a probe session listening on P; the monitor listens on A and
+    connects to P; the sim connects to A and P (every pair talks directly). The probe records
+    the arrival time [time.monotonic, shared by all processes] of every health message and of
+    the first rig's samples. The sim sends sample k of every rig at the deadline t0 + k h, so
+    t0 is estimated as min_k(arrival_k - k h) over the first rig (it exceeds the true t0 by the
+    smallest transport delay, so latencies are under-stated by that, ~0.1 ms) and a health
+    message's latency is its arrival minus the deadline of the sample seq it reports.
+
+    Counted over the window [t0 + warm, t0 + warm + seconds] of deadlines: ``lost`` = samples
+    the monitor saw missing from the seq (gaps) or dropped as duplicates/out of order (from
+    its exit summary, whole run); ``health_missing`` = health messages expected (every rig,
+    every ``eval_every`` samples) but not received within ``grace`` after the window.
+    ``ok`` = nothing lost or missing and p99 < ``max_p99_ms``.
+    """
+    import tempfile
+
+    import zenoh
+
+    from hydromon.bus import free_tcp_endpoint, open_session
+
+    ep_p, ep_a = free_tcp_endpoint(), free_tcp_endpoint()
+    first_rig = "rig-" + "0" * max(4, len(str(n_rigs - 1)))
+    samples: list = []
+    health: list = []
+    clock = time.monotonic
+
+    def on_sample(s):
+        samples.append((clock(), s.payload.to_bytes()))
+
+    def on_health(s):
+        health.append((clock(), s.payload.to_bytes()))
+
+    py = [sys.executable, "-m", "hydromon.cli"]
+    with tempfile.TemporaryDirectory(prefix="hydromon-bench-") as tmp, \
+            open_session("peer", listen=[ep_p]) as probe:
+        sub_s = probe.declare_subscriber(f"hydro/rig/{first_rig}/sample", on_sample)
+        sub_h = probe.declare_subscriber("hydro/rig/*/health", on_health)
+        mon_log, sim_log = os.path.join(tmp, "monitor.log"), os.path.join(tmp, "sim.log")
+        with open(mon_log, "w") as ml, open(sim_log, "w") as sl:
+            mon = subprocess.Popen(py + ["monitor", "--listen", ep_a, "--connect", ep_p, "--node", "bench",
+                                         "--eval-every", str(eval_every)], stderr=ml, stdout=subprocess.DEVNULL)
+            sim = None
+            try:
+                _wait_for(mon_log, "hydromon monitor: node", mon, 120)
+                time.sleep(1.0)  # subscribers declared and routes known
+                sim = subprocess.Popen(py + ["sim", "--rigs", str(n_rigs), "--rate", "1", "--connect", ep_a,
+                                             "--connect", ep_p], stderr=sl, stdout=subprocess.DEVNULL)
+                end = clock() + 120
+                while not samples and clock() < end:
+                    if sim.poll() is not None:
+                        raise RuntimeError(f"sim exited ({sim.returncode}): {open(sim_log).read()[-2000:]}")
+                    time.sleep(0.01)
+                if not samples:
+                    raise RuntimeError("no sample reached the probe in 120 s")
+                t_first = samples[0][0]
+                time.sleep(max(0.0, t_first + warm - clock()))
+                cpu0 = (_cpu_seconds(sim.pid), _cpu_seconds(mon.pid), time.process_time(), clock())
+                time.sleep(max(0.0, t_first + warm + seconds - clock()))
+                cpu1 = (_cpu_seconds(sim.pid), _cpu_seconds(mon.pid), time.process_time(), clock())
+                time.sleep(grace)
+                _stop(sim)
+                time.sleep(0.5)
+            finally:
+                if sim is not None:
+                    _stop(sim)
+                _stop(mon)
+            sub_s.undeclare()
+            sub_h.undeclare()
+        mon_text, sim_text = open(mon_log).read(), open(sim_log).read()
+
+    # t0 of the sim's deadlines, from the first rig's samples
+    t0 = min(t - orjson.loads(p)["seq"] * h for t, p in samples)
+    lo, hi = t0 + warm, t0 + warm + seconds
+    lat = []
+    for t, p in health:
+        seq = orjson.loads(p)["seq"]
+        dl = t0 + seq * h
+        if lo <= dl < hi:
+            lat.append(t - dl)
+    k_lo, k_hi = math.ceil(warm / h - 1e-9), math.ceil((warm + seconds) / h - 1e-9)
+    per_rig = sum(1 for k in range(k_lo, k_hi) if (k + 1) % eval_every == 0)
+    expected = per_rig * n_rigs
+    lat_ms = np.array(lat) * 1e3
+    m = _MON_SUMMARY.search(mon_text)
+    sm = _SIM_SUMMARY.search(sim_text)
+    lost = None if m is None else int(m.group(5)) + int(m.group(7))
+    wall = cpu1[3] - cpu0[3]
+    out = {
+        "rigs": n_rigs,
+        "samples_per_s": len(lat) * eval_every / seconds,
+        "offered_samples_per_s": n_rigs / h,
+        "lost": lost,
+        "health_expected": expected,
+        "health_received": len(lat),
+        "health_missing": max(0, expected - len(lat)),
+        "p50_ms": float(np.percentile(lat_ms, 50)) if len(lat_ms) else None,
+        "p99_ms": float(np.percentile(lat_ms, 99)) if len(lat_ms) else None,
+        "max_ms": float(lat_ms.max()) if len(lat_ms) else None,
+        "cpu_sim": (cpu1[0] - cpu0[0]) / wall,
+        "cpu_monitor": (cpu1[1] - cpu0[1]) / wall,
+        "cpu_probe": (cpu1[2] - cpu0[2]) / wall,
+        "seconds": seconds,
+        "monitor_summary": m.group(0) if m else mon_text[-500:],
+        "sim_summary": sm.group(0) if sm else sim_text[-500:],
+    }
+    out["ok"] = bool(lost == 0 and out["health_missing"] == 0 and out["p99_ms"] is not None
+                     and out["p99_ms"] < max_p99_ms)
+    return out
+
+
+def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0) -> dict:
+    """Step up the rig count until a step loses a sample or misses p99 < 50 ms; the figure is
+    the largest passing step (``rigs`` None with a ``reason`` if none passes or it cannot run)."""
+    try:
+        import hydromon.monitornode  # noqa: F401
+    except ImportError as exc:
+        return {"rigs": None, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
+                "reason": f"no monitor node: {exc}"}
+    results = []
+    best = None
+    for n in steps:
+        _log(f"live: {n} rigs for {seconds:g} s")
+        try:
+            r = live_step(n, seconds)
+        except (RuntimeError, OSError, ValueError) as exc:
+            r = {"rigs": n, "ok": False, "error": str(exc)}
+        _log(f"live: {n} rigs: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                                            for k, v in r.items() if not k.endswith("summary")))
+        results.append(r)
+        if not r.get("ok"):
+            break
+        best = r
+    if best is None:
+        return {"rigs": None, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
+                "reason": f"no step passed (first: {steps[0]} rigs)", "steps": results}
+    out = {k: best[k] for k in ("rigs", "samples_per_s", "lost", "p50_ms", "p99_ms", "cpu_sim",
+                                "cpu_monitor", "cpu_probe", "health_missing", "seconds")}
+    out["limited_by"] = (f"{results[-1]['rigs']} rigs failed" if not results[-1].get("ok")
+                         else f"largest step tried ({steps[-1]} rigs)")
+    out["steps"] = results
+    return out
