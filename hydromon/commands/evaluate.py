@@ -1,0 +1,32 @@
+"""``hydromon evaluate FILE``: grade one recording (.csv t,ug,x1,x3,x4,x5 in SI, or .mcap)."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+NAME = "evaluate"
+HELP = "grade one recording (.mcap, or .csv with columns t,ug,x1,x3,x4,x5 in SI units)"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("file", metavar="FILE", help="recording: .csv (t,ug,x1,x3,x4,x5, SI) or .mcap")
+    parser.add_argument("--json", action="store_true",
+                        help='print {"grade","level","confidence","status","params","std_errors"} on stdout')
+    parser.add_argument("--rig", metavar="ID", help="which rig of a multi-rig MCAP recording")
+    parser.add_argument("--ranges", metavar="FILE", help="health ranges JSON (default: the paper's Table 3)")
+
+
+def run(args) -> int:
+    from hydromon.evaluate import evaluate, load_recording, render, to_json
+    from monitor.grading import Ranges
+
+    ranges = Ranges.load(args.ranges) if args.ranges else None
+    rec = load_recording(args.file, rig=args.rig)
+    print(f"hydromon evaluate: {rec.source}: rig {rec.rig}, {len(rec.samples)} samples", file=sys.stderr)
+    result = evaluate(rec, ranges=ranges)
+    if args.json:
+        print(json.dumps(to_json(result)))
+    else:
+        render(result)
+    return 0
