@@ -1,0 +1,227 @@
+"""Replay of MCAP recordings: back onto the bus, paced, or straight into the monitor core.
+
+* :func:`replay_bus` publishes a recording's messages on an open zenoh session in log-time
+  order. Pacing is drift-free: message i is due at ``t0 + (log_time_i - first) / rate``, a
+  deadline computed from the recording, never by adding up sleeps; a late message goes
+  at once and the next deadlines stay put. ``rate`` = 0 sends as fast as possible. With
+  ``loop`` the window plays again, each pass starting one mean message spacing after the
+  previous pass's last message (the rigs' seq restarts at the start of the window; the
+  monitor treats seq 0 after a higher seq as a restart).
+* :func:`replay_direct` feeds the same messages to a :class:`~hydromon.monitornode.MonitorCore`
+  in-process, as fast as possible. Health is a function of the message sequence only
+  (MonitorCore has no clock), so every direct replay of a recording gives the same health,
+  byte for byte, and a bus replay into ``hydromon monitor`` gives the same verdicts.
+
+``keys`` are zenoh key expressions matched against topics with ``KeyExpr.intersects``
+(``*`` is one chunk, ``**`` any number of chunks, ``$*`` part of a chunk), e.g.
+``hydro/rig/*/sample``. ``start`` and ``duration`` [s] cut a window out of the recording,
+measured in log time from its first message.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+
+import zenoh
+from mcap.reader import make_reader
+
+from hydromon.bus import JSON
+from hydromon.contract import DEFAULT_NAMESPACE
+from hydromon.mcap_io import CorruptRecording, TruncatedRecording, read_recording
+
+__all__ = ["KeyFilter", "recording_span", "iter_window", "replay_direct", "replay_bus", "ReplayStats",
+           "health_jsonl"]
+
+
+class KeyFilter:
+    """``filter(key) -> bool``: does a topic match any of the key expressions?
+
+    Parameters
+    ----------
+    patterns : iterable of str or None
+        Zenoh key expressions; None or empty matches everything.
+    """
+
+    def __init__(self, patterns: Iterable[str] | None = None):
+        self.patterns = list(patterns or [])
+        self._exprs = []
+        for p in self.patterns:
+            try:
+                self._exprs.append(zenoh.KeyExpr(p))
+            except zenoh.ZError as exc:
+                raise ValueError(f"--keys {p!r} is not a zenoh key expression ('*' is a whole chunk, "
+                                 f"'**' any chunks, '$*' part of a chunk): {str(exc).split(' at ')[0]}") from None
+        self._cache: dict[str, bool] = {}
+
+    def __call__(self, key: str) -> bool:
+        if not self._exprs:
+            return True
+        hit = self._cache.get(key)
+        if hit is None:
+            try:
+                k = zenoh.KeyExpr(key)
+                hit = any(e.intersects(k) for e in self._exprs)
+            except zenoh.ZError:
+                hit = False  # not a key expression: nothing matches it
+            self._cache[key] = hit
+        return hit
+
+
+@contextlib.contextmanager
+def _open(src):
+    if isinstance(src, (str, os.PathLike)):
+        with open(src, "rb") as f:
+            yield f, os.fspath(src)
+    else:
+        src.seek(0)
+        yield src, getattr(src, "name", "<stream>")
+
+
+def recording_span(src) -> tuple[int, int, int]:
+    """``(first_log_time_ns, last_log_time_ns, message_count)`` from the recording's summary."""
+    with _open(src) as (f, name):
+        try:
+            summary = make_reader(f).get_summary()
+        except Exception as exc:  # the mcap library raises many kinds on a damaged file
+            raise CorruptRecording(f"{name}: {type(exc).__name__}: {exc}") from exc
+        if summary is None or summary.statistics is None:
+            raise TruncatedRecording(f"{name}: recording has no summary; run `hydromon recover {name}`")
+        st = summary.statistics
+        return int(st.message_start_time), int(st.message_end_time), int(st.message_count)
+
+
+def _window(src, start: float | None, duration: float | None) -> tuple[int | None, int | None, int]:
+    for name, v in (("start", start), ("duration", duration)):
+        if v is not None and not v >= 0:
+            raise ValueError(f"{name} {v!r} must be >= 0 s")
+    first, last, count = recording_span(src)
+    lo = first + round((start or 0.0) * 1e9)
+    hi = None if duration is None else lo + round(duration * 1e9)
+    return lo, hi, count
+
+
+def iter_window(src, *, keys: Iterable[str] | None = None, start: float | None = None,
+                duration: float | None = None) -> Iterator[tuple[str, bytes, int]]:
+    """Messages ``(key, payload, log_time_ns)`` of the window, in log-time order."""
+    match = KeyFilter(keys)
+    lo, hi, count = _window(src, start, duration)
+    if count == 0:
+        return
+    for key, payload, log_ns, _ in read_recording(src, start_ns=lo, end_ns=hi):
+        if match(key):
+            yield key, payload, log_ns
+
+
+def replay_direct(src, *, keys: Iterable[str] | None = None, start: float | None = None,
+                  duration: float | None = None, namespace: str = DEFAULT_NAMESPACE, core=None,
+                  batch: int = 10000):
+    """Run a MonitorCore over the recording as fast as possible.
+
+    Returns ``(health, core)``: the health messages ``[(key, payload bytes)]`` in order,
+    and the core (counters, latest health per rig).
+    """
+    from hydromon.monitornode import MonitorCore
+
+    core = core or MonitorCore(namespace)
+    health: list[tuple[str, bytes]] = []
+    buf: list[tuple[str, bytes]] = []
+    for key, payload, _ in iter_window(src, keys=keys, start=start, duration=duration):
+        buf.append((key, payload))
+        if len(buf) >= batch:
+            health += core.process(buf)
+            buf = []
+    health += core.process(buf)
+    return health, core
+
+
+def health_jsonl(health: Iterable[tuple[str, bytes]]) -> Iterator[bytes]:
+    """JSON lines ``{"key": ..., "health": {...}}`` of health messages (payload bytes kept)."""
+    for key, payload in health:
+        yield b'{"key":"' + key.encode() + b'","health":' + payload + b"}\n"
+
+
+@dataclass
+class ReplayStats:
+    """What a bus replay did: messages put, passes, lateness of the sends [s], wall time [s]."""
+
+    published: int = 0
+    passes: int = 0
+    max_late: float = 0.0
+    wall: float = 0.0
+    keys: set = field(default_factory=set)
+
+
+def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable[str] | None = None,
+               start: float | None = None, duration: float | None = None, loop: bool = False,
+               max_passes: int | None = None, stop_event: threading.Event | None = None,
+               progress: Callable[[float, float], None] | None = None,
+               congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
+               clock=time.monotonic) -> ReplayStats:
+    """Publish a recording's window on ``session`` (see the module docstring for pacing).
+
+    Parameters
+    ----------
+    rate : float
+        Speed relative to the recording (1 = as recorded, 0 = as fast as possible).
+    loop : bool
+        Play the window again and again until ``stop_event`` (or ``max_passes`` passes).
+    progress : callable or None
+        Called as ``progress(done_s, total_s)`` in recording seconds of the current pass.
+    congestion : zenoh.CongestionControl
+        BLOCK (default) never drops: a slow subscriber slows the replay.
+    """
+    if not rate >= 0:
+        raise ValueError(f"rate {rate!r} must be >= 0")
+    lo, hi, count = _window(src, start, duration)
+    stop = stop_event if stop_event is not None else threading.Event()
+    match = KeyFilter(keys)
+    stats = ReplayStats()
+    pubs: dict[str, zenoh.Publisher] = {}
+    t0 = clock()
+    base_ns = 0  # recording time of the start of this pass, relative to the first pass
+    try:
+        while not stop.is_set() and count:
+            first_ns = last_ns = None
+            n = 0
+            for key, payload, log_ns, _ in read_recording(src, start_ns=lo, end_ns=hi):
+                if first_ns is None:
+                    first_ns = log_ns
+                last_ns = log_ns
+                n += 1
+                if not match(key):
+                    continue
+                offset = (base_ns + log_ns - first_ns) / 1e9
+                if rate > 0:
+                    wait = t0 + offset / rate - clock()
+                    if wait > 0 and stop.wait(wait):
+                        break
+                    stats.max_late = max(stats.max_late, -wait)
+                elif stop.is_set():
+                    break
+                pub = pubs.get(key)
+                if pub is None:
+                    pub = pubs[key] = session.declare_publisher(key, encoding=JSON, congestion_control=congestion)
+                pub.put(payload)
+                stats.published += 1
+                stats.keys.add(key)
+                if progress is not None and stats.published % 200 == 0:
+                    progress((log_ns - first_ns) / 1e9, ((hi or last_ns) - first_ns) / 1e9)
+            if first_ns is None:
+                break  # an empty window
+            stats.passes += 1
+            if progress is not None:
+                progress((last_ns - first_ns) / 1e9, (last_ns - first_ns) / 1e9)
+            if not loop or (max_passes is not None and stats.passes >= max_passes):
+                break
+            span = last_ns - first_ns
+            base_ns += span + (span // max(n - 1, 1) if n > 1 else 10_000_000)
+    finally:
+        stats.wall = clock() - t0
+        for p in pubs.values():
+            p.undeclare()
+    return stats
