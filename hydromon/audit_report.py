@@ -1,0 +1,132 @@
+"""Presenters of a ``monitor.audit.AuditResult``: JSON document, text summary, Markdown + PNG report.
+
+Compute, then present (STYLE.md rule 10): nothing here analyses; it formats the result.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["to_json", "summary", "write_report"]
+
+
+def _num(x):
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        x = float(x)
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _num(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_num(v) for v in x]
+    return x
+
+
+def to_json(result) -> dict:
+    """The ``audit`` JSON document (DESIGN.md 6): cause, candidates, gain, params_nominal,
+    params_extended (the named cause's model, or the nominal one), plus confident/note."""
+    best = result.best
+    ext = dict(best.params) if best else dict(result.params_nominal)
+    if best:
+        ext.update(best.effect)
+    return _num({
+        "cause": result.cause,
+        "confident": result.confident,
+        "note": result.note,
+        "candidates": [{"name": c.name, "score": c.score, "gain": c.gain, "value": c.value,
+                        "effect": c.effect, "residual_ratio": c.residual_ratio} for c in result.candidates],
+        "gain": result.gain,
+        "params_nominal": result.params_nominal,
+        "params_extended": ext,
+    })
+
+
+def summary(result) -> str:
+    """A few lines for a terminal."""
+    lines = [f"cause: {result.cause}" + ("" if result.confident else "  (not confident)")]
+    if result.note:
+        lines.append(f"note: {result.note}")
+    lines.append(f"{'candidate':22s} {'score':>9s} {'free-run gain':>14s}")
+    for c in result.candidates:
+        lines.append(f"{c.name:22s} {c.score:9.1f} {c.gain:14.2f}")
+    g = result.gain
+    lines.append("held-out free-run NRMSE (nominal -> extended): " + ", ".join(
+        f"{ch} {g[ch]['nrmse_nominal']:.3f} -> {g[ch]['nrmse_extended']:.3f}"
+        for ch in ("x1", "x3", "x4", "x5") if ch in g))
+    return "\n".join(lines)
+
+
+def _md_table(rows, header):
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def write_report(result, directory) -> Path:
+    """Write ``audit.md`` and PNG plots (matplotlib, Agg) into ``directory``; returns the Markdown path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    t = result.t
+    best = result.best
+    names = ("x1 [m]", "x3 [Pa]", "x4 [Pa]", "x5 [m]")
+    if result.simulated_nominal is not None:
+        fig, axes = plt.subplots(4, 1, figsize=(10, 9), sharex=True)
+        for i, ax in enumerate(axes):
+            ax.plot(t, result.measured[:, i], "k", lw=0.8, label="measured")
+            ax.plot(t, result.simulated_nominal[:, i], "tab:red", lw=0.8, label="nominal free run")
+            if best is not None and best.simulated is not None:
+                ax.plot(t, best.simulated[:, i], "tab:blue", lw=0.8, label=f"with {best.name}")
+            ax.axvline(t[result.split], color="gray", ls="--", lw=0.8)
+            ax.set_ylabel(names[i])
+        axes[0].legend(loc="upper right", fontsize=8)
+        axes[-1].set_xlabel("t [s] (dashed: start of held-out data)")
+        fig.tight_layout()
+        fig.savefig(d / "freerun.png", dpi=90)
+        plt.close(fig)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
+    for ax, (g, (rows, r)) in zip(axes, result.residuals_nominal.items()):
+        ax.plot(t[rows], r, ".", ms=1, color="tab:red", label="nominal")
+        if best is not None:
+            br, bres = best.residuals[g]
+            ax.plot(t[br], bres, ".", ms=1, color="tab:blue", label=f"with {best.name}")
+        ax.set_ylabel(f"{g} residual")
+    axes[0].legend(loc="upper right", fontsize=8, markerscale=8)
+    axes[-1].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(d / "residuals.png", dpi=90)
+    plt.close(fig)
+
+    fr = result.gain
+    md = [f"# Model audit\n\n**Cause: {result.cause}**" + ("" if result.confident else " (not confident)"), ""]
+    if result.note:
+        md += [result.note, ""]
+    md += ["## Candidates (held-out score, higher is better; free-run gain = error reduction)", "",
+           _md_table([(c.name, f"{c.score:.1f}", f"{c.gain:.2f}", c.value, c.equation)
+                      for c in result.candidates], ["name", "score", "gain", "fitted", "equation"]), ""]
+    md += ["## Free run on held-out data", "",
+           _md_table([(ch, f"{fr[ch]['nrmse_nominal']:.3f}", f"{fr[ch]['nrmse_extended']:.3f}",
+                       f"{fr[ch]['fit_nominal']:.1f}", f"{fr[ch]['fit_extended']:.1f}")
+                      for ch in ("x1", "x3", "x4", "x5") if ch in fr],
+                     ["channel", "NRMSE nominal", "NRMSE extended", "fit % nominal", "fit % extended"]), "",
+           "![free run](freerun.png)", ""]
+    md += ["## Equation-error residuals (held-out variance)", "",
+           _md_table([(g, f"{v['nominal']:.3g}", f"{v['extended']:.3g}")
+                      for g, v in fr["residual_variance"].items()], ["equation", "nominal", "extended"]), "",
+           "![residuals](residuals.png)", ""]
+    md += ["## Identified parameters (SI)", "",
+           _md_table([(k, f"{v:.4g}", f"{best.params[k]:.4g}" if best else "") for k, v in result.params_nominal.items()],
+                     ["name", "nominal", "extended"]), ""]
+    path = d / "audit.md"
+    path.write_text("\n".join(md))
+    return path

@@ -1,0 +1,285 @@
+"""The model audit: what the paper's model gets wrong in a record, and which named extension fixes it.
+
+``audit(samples, config) -> AuditResult`` is pure. The record is split in time: the first
+``train_fraction`` fits, the rest scores.
+
+1. Identify the nominal model on the training part (``monitor.audit.residuals``: three
+   equation blocks, bias-compensated batch least squares).
+2. For every candidate of the library (``monitor.audit.candidates``), search its nonlinear
+   parameter on the training part (best training fit), then score it on the held-out
+   part with an information criterion over the three blocks,
+
+       score = sum_g (N_g / 2) ln(MSE_g,nominal / MSE_g,extended) - (k / 2) ln(N)
+
+   with N_g the held-out rows of block g divided by the residual correlation length
+   (the smoothing window for the filtered force and chamber blocks, 1 for the valve's
+   raw-sample equation), N their sum and k the parameters the extension adds. A term
+   earns its place when its score exceeds ``threshold``.
+3. Re-simulate the nominal and each extended model in free run from the measured ug
+   (``monitor.audit.freerun``) and measure the held-out error per channel (the gain).
+
+The cause is the best-scoring candidate if it earns its place, else "none". When the
+runner-up scores within ``margin`` of the winner, or the winner is Stribeck friction whose
+free-run gain is negligible (Stribeck is nearly collinear with Coulomb plus viscous friction
+at these speeds), ``confident`` is False and ``note`` says which names it could not tell apart.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from plant_sim.params import Effects, RigConfig
+
+from .candidates import LIBRARY
+from .freerun import CHANNELS, channel_scores, free_run
+from .residuals import BLOCKS, SG_WINDOW, Fit, build_blocks, fit_blocks, nominal_params, signals, Spec
+
+__all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
+
+
+@dataclass(frozen=True)
+class AuditOptions:
+    """Hyperparameters of the audit.
+
+    Attributes
+    ----------
+    train_fraction : float
+        Leading fraction of the record used for fitting (the rest is held out) [-].
+    threshold : float
+        Information-criterion score a candidate must exceed to be named [-] (nats).
+    margin : float
+        Score gap to the runner-up below which the audit says it cannot tell them apart [-].
+    free_run : bool
+        Re-simulate the models (the gain); off for a quick ranking.
+    """
+
+    train_fraction: float = 0.7
+    threshold: float = 10.0
+    margin: float = 3.0
+    free_run: bool = True
+
+    def __post_init__(self):
+        if not (0.2 <= self.train_fraction <= 0.9):
+            raise ValueError(f"train_fraction must lie in [0.2, 0.9], got {self.train_fraction!r}")
+        if not math.isfinite(self.threshold):
+            raise ValueError(f"threshold must be finite, got {self.threshold!r}")
+
+
+@dataclass(frozen=True)
+class CandidateResult:
+    """One candidate, fitted and scored.
+
+    Attributes
+    ----------
+    name, equation : str
+    value : object
+        The searched parameter's best value (SI; sensor delay: (samples, in_loop)).
+    score : float
+        Held-out information-criterion score (higher = better; > threshold earns its place).
+    residual_ratio : dict
+        Held-out residual variance extended / nominal, per block.
+    gain : float
+        Free-run held-out error reduction, 1 - mean NRMSE extended / mean NRMSE nominal (nan
+        without free run).
+    freerun : dict
+        Held-out per-channel {"nrmse", "fit"} of the extended model's free run.
+    params : dict
+        The 11 identified parameters of the extended model (bus names, SI).
+    effect : dict
+        The fitted extension as ``plant_sim.params.Effects`` fields.
+    """
+
+    name: str
+    equation: str
+    value: object
+    score: float
+    residual_ratio: dict
+    gain: float
+    freerun: dict
+    params: dict
+    effect: dict
+    simulated: np.ndarray | None = field(default=None, repr=False, compare=False)
+    residuals: dict = field(default_factory=dict, repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class AuditResult:
+    """What the audit found (compute, then present: see ``hydromon.audit_report``).
+
+    Attributes
+    ----------
+    cause : str
+        The effect name, or "none".
+    confident : bool
+        False when the best candidates cannot be told apart (see ``note``).
+    note : str
+    candidates : list of CandidateResult
+        Best score first.
+    params_nominal : dict
+        Nominal identification on the training part (bus names, SI).
+    freerun_nominal : dict
+        Held-out per-channel {"nrmse", "fit"} of the nominal free run.
+    residual_var_nominal : dict
+        Held-out equation-error variance per block of the nominal model [N^2, (m^3/s)^2, m^2].
+    split : int
+        First held-out sample index.
+    t : array
+        Sample times [s].
+    measured : array (N, 4)
+        x1, x3, x4, x5 as recorded.
+    simulated_nominal : array (N, 4) or None
+    residuals_nominal : dict
+        Block -> (sample index, residual) of the nominal model.
+    """
+
+    cause: str
+    confident: bool
+    note: str
+    candidates: list
+    params_nominal: dict
+    freerun_nominal: dict
+    residual_var_nominal: dict
+    split: int
+    t: np.ndarray = field(repr=False)
+    measured: np.ndarray = field(repr=False)
+    simulated_nominal: np.ndarray | None = field(default=None, repr=False)
+    residuals_nominal: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def best(self) -> CandidateResult | None:
+        """The named cause's candidate (None when the cause is "none")."""
+        for c in self.candidates:
+            if c.name == self.cause:
+                return c
+        return None
+
+    @property
+    def gain(self) -> dict:
+        """Before/after on held-out data for the named cause (or nominal twice when none)."""
+        best = self.best
+        after = best.freerun if best else self.freerun_nominal
+        out = {ch: {"nrmse_nominal": self.freerun_nominal[ch]["nrmse"], "nrmse_extended": after[ch]["nrmse"],
+                    "fit_nominal": self.freerun_nominal[ch]["fit"], "fit_extended": after[ch]["fit"]}
+               for ch in self.freerun_nominal}
+        out["free_run_error_reduction"] = best.gain if best else 0.0
+        out["residual_variance"] = {
+            g: {"nominal": self.residual_var_nominal[g],
+                "extended": self.residual_var_nominal[g] * (best.residual_ratio[g] if best else 1.0)}
+            for g in self.residual_var_nominal}
+        return out
+
+
+def _n_eff(block_name: str, n_rows: int) -> float:
+    if block_name == "valve":
+        return float(n_rows)
+    per_sample = 2 if block_name == "chamber" else 1
+    return n_rows / (per_sample * SG_WINDOW)
+
+
+def _mse_split(fit: Fit, split: int) -> tuple[dict, dict, dict, dict]:
+    tr, te, ntr, nte = {}, {}, {}, {}
+    for g in BLOCKS:
+        rows = fit.blocks[g].rows
+        r = fit.residuals[g]
+        a, b = r[rows < split], r[rows >= split]
+        tr[g], te[g] = float(np.mean(a * a)), float(np.mean(b * b))
+        ntr[g], nte[g] = _n_eff(g, len(a)), _n_eff(g, len(b))
+    return tr, te, ntr, nte
+
+
+def _ic(nom: dict, ext: dict, n: dict, k: int) -> float:
+    gain = sum(0.5 * n[g] * math.log(nom[g] / ext[g]) for g in BLOCKS if nom[g] > 0 and ext[g] > 0)
+    return gain - 0.5 * k * math.log(sum(n.values()))
+
+
+def _mean_nrmse(scores: dict) -> float:
+    return float(np.mean([scores[c]["nrmse"] for c in CHANNELS]))
+
+
+def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
+          library=LIBRARY) -> AuditResult:
+    """Audit one record.
+
+    Parameters
+    ----------
+    samples : array (N, 5)
+        ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m] at the config's sample rate.
+    config : RigConfig
+        The rig's constants (default: the paper's).
+    options : AuditOptions
+    library : sequence of Candidate
+        The named extensions to rank (default: all seven).
+    """
+    cfg = config or RigConfig()
+    opt = options or AuditOptions()
+    s = np.asarray(samples, dtype=float)
+    sig = signals(s, cfg.h)
+    split = int(opt.train_fraction * sig.n)
+    nominal = fit_blocks(build_blocks(sig, cfg, Spec()), split)
+    p_nom = nominal_params(nominal, cfg, cfg.h)
+    theta0 = max(p_nom["CdW_sqrt_rho"], 1e-6)
+    nom_tr, nom_te, n_tr, n_te = _mse_split(nominal, split)
+    test = slice(split, sig.n)
+    measured = s[:, 1:]
+
+    fr_nom, sim_nom = None, None
+    if opt.free_run:
+        run = free_run(s, cfg, p_nom, v0=float(sig.vl[0]))
+        sim_nom = run.measured
+        fr_nom = channel_scores(measured, sim_nom, test)
+
+    results = []
+    for cand in library:
+        best = None
+        for value in cand.grid(sig):
+            try:
+                fit = fit_blocks(build_blocks(sig, cfg, cand.spec(value), theta0), split)
+            except ValueError:  # e.g. a spool stop so low that no valve row is free of it
+                continue
+            tr, _, ntr, _ = _mse_split(fit, split)
+            train_score = _ic(nom_tr, tr, ntr, 0)
+            if best is None or train_score > best[0]:
+                best = (train_score, value, fit)
+        if best is None:
+            continue
+        _, value, fit = best
+        _, te, _, nte = _mse_split(fit, split)
+        score = _ic(nom_te, te, nte, cand.n_extra)
+        params = nominal_params(fit, cfg, cfg.h)
+        effect = cand.effects(value, fit.theta)
+        gain, fr, sim = math.nan, {}, None
+        if opt.free_run:
+            run = free_run(s, cfg, params, Effects(**effect), v0=float(sig.vl[0]))
+            sim = run.measured
+            fr = channel_scores(measured, sim, test)
+            gain = 1.0 - _mean_nrmse(fr) / _mean_nrmse(fr_nom)
+        results.append(CandidateResult(
+            name=cand.name, equation=cand.equation, value=value, score=float(score),
+            residual_ratio={g: te[g] / nom_te[g] if nom_te[g] > 0 else 1.0 for g in BLOCKS},
+            gain=float(gain), freerun=fr, params=params, effect=effect, simulated=sim,
+            residuals={g: (fit.blocks[g].rows, fit.residuals[g]) for g in BLOCKS}))
+    results.sort(key=lambda c: -c.score)
+
+    top = results[0]
+    cause, confident, note = "none", True, ""
+    if top.score > opt.threshold:
+        cause = top.name
+        close = [c.name for c in results[1:] if c.score > opt.threshold and top.score - c.score < opt.margin]
+        if close:
+            confident = False
+            note = f"cannot tell {top.name} from {', '.join(close)} (scores within {opt.margin:g})"
+        elif top.name == "stribeck_friction" and opt.free_run and not top.gain > 0.05:
+            confident = False
+            note = ("stribeck_friction improves the force equation but hardly the free run: at these "
+                    "speeds it is nearly collinear with Coulomb + viscous friction")
+    else:
+        note = f"no extension earns its place (best {top.name} scores {top.score:.1f} <= {opt.threshold:g})"
+
+    return AuditResult(
+        cause=cause, confident=confident, note=note, candidates=results, params_nominal=p_nom,
+        freerun_nominal=fr_nom or {}, residual_var_nominal=nom_te, split=split,
+        t=np.arange(sig.n) * cfg.h, measured=measured, simulated_nominal=sim_nom,
+        residuals_nominal={g: (nominal.blocks[g].rows, nominal.residuals[g]) for g in BLOCKS})

@@ -1,0 +1,259 @@
+"""The library of named candidate model extensions the audit ranks (STYLE.md rule 5).
+
+Each candidate is a small object with a physical ``name`` (one of
+``plant_sim.params.EFFECT_NAMES``), the ``regressors`` it adds, a readable ``equation``,
+a ``grid`` of values of its one nonlinear parameter (searched; the rest enters linearly),
+a ``spec`` that turns a grid value into the equation blocks of
+``monitor.audit.residuals``, and ``effects`` that maps a fitted extension onto the
+``plant_sim.params.Effects`` fields for the free-run re-simulation. The audit treats
+them all alike.
+
+Sensor delay: a delay of the recorded x1 misaligns x1 against the pressures in the
+force and chamber equations whatever its origin. Whether the controller saw the delayed
+x1 too is read from the valve equation, whose input is du = K_p (ug - K_f x1_fb): a
+delay in the recording only is fitted best with du from the re-aligned x1, a delay
+inside the loop with du from the recorded x1. Both variants are grid points of one
+candidate, chosen by the training fit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from plant_sim.params import P_ATM
+
+from .residuals import Signals, Spec, orifice_factors  # noqa: F401
+
+__all__ = ["Candidate", "LIBRARY", "LoadOffset", "StribeckFriction", "ValveDeadBand",
+           "ValveSaturation", "SupplyPressureSag", "EntrainedAir", "SensorDelay"]
+
+_P_MIN_AIR = 1e4  # [Pa] as plant_sim.model
+
+
+class Candidate:
+    """Base of the library: a named model extension.
+
+    Attributes
+    ----------
+    name : str
+        The effect's name (``plant_sim.params.EFFECT_NAMES``).
+    equation : str
+        The extended equation, readable.
+    regressors : tuple of str
+        The columns (or modified regressors) it adds.
+    n_extra : int
+        Parameters it adds, the searched one included (the information criterion's k).
+    """
+
+    name = ""
+    equation = ""
+    regressors: tuple = ()
+    n_extra = 1
+
+    def grid(self, sig: Signals) -> list:
+        """Values of the searched parameter to try."""
+        return [None]
+
+    def spec(self, value) -> Spec:
+        """The equation blocks' spec at the searched value."""
+        raise NotImplementedError
+
+    def effects(self, value, theta: dict) -> dict:
+        """``Effects`` fields of the fitted extension (theta: block -> column -> value)."""
+        raise NotImplementedError
+
+    def describe(self, value, theta: dict) -> dict:
+        """The extension's own fitted parameters, SI, for reports."""
+        return self.effects(value, theta)
+
+    def __repr__(self) -> str:
+        return f"<{self.name}: {self.equation}>"
+
+
+def _geom(lo: float, hi: float, n: int) -> list:
+    return [float(v) for v in np.geomspace(lo, hi, n)]
+
+
+@dataclass(frozen=True, repr=False)
+class LoadOffset(Candidate):
+    """An unknown constant force F_off [N] beyond the configured F_L."""
+
+    name = "load_offset"
+    equation = "A1 x3 - A2 x4 - F_L = m a + (B+f_v) v + f_c sign(v) + K_t x1 + F_off"
+    regressors = ("1 (force equation)",)
+    n_extra = 1
+
+    def spec(self, value):
+        return Spec(force_cols={"F_off": lambda sig, cfg, x1, v: np.ones_like(v)})
+
+    def effects(self, value, theta):
+        return {"load_offset": theta["force"]["F_off"]}
+
+
+@dataclass(frozen=True, repr=False)
+class StribeckFriction(Candidate):
+    """Stribeck peak F_s [N] above Coulomb friction, decaying over v_s [m/s] (searched)."""
+
+    name = "stribeck_friction"
+    equation = "... + f_c sign(v) + F_s exp(-(v/v_s)^2) sign(v) + (B+f_v) v"
+    regressors = ("exp(-(v/v_s)^2) sign(v)",)
+    n_extra = 2
+
+    def grid(self, sig):
+        return _geom(0.002, 0.04, 7)
+
+    def spec(self, v_s):
+        return Spec(force_cols={"F_s": lambda sig, cfg, x1, v: np.exp(-(v / v_s) ** 2) * np.sign(v)})
+
+    def effects(self, v_s, theta):
+        return {"stribeck_F_s": max(theta["force"]["F_s"], 0.0), "stribeck_v_s": v_s}
+
+
+def _dead_band_flow(d):
+    def flow(sig, cfg, x5, p1, p2, theta0):
+        xe = np.sign(x5) * np.maximum(np.abs(x5) - d, 0.0)
+        z1, z2 = orifice_factors(xe, p1, p2, cfg.p_s)
+        return xe * z1, xe * z2
+    return flow
+
+
+@dataclass(frozen=True, repr=False)
+class ValveDeadBand(Candidate):
+    """Spool overlap d [m] (searched): no flow while |x5| < d."""
+
+    name = "valve_dead_band"
+    equation = "q_i = theta x_e z_i(x_e),  x_e = sign(x5) max(|x5| - d, 0)"
+    regressors = ("x_e z1", "x_e z2 (replace x5 z1, x5 z2)")
+    n_extra = 1
+
+    def grid(self, sig):
+        scale = float(np.quantile(np.abs(sig.x5l), 0.99))
+        return _geom(0.005 * scale, 0.3 * scale, 14)
+
+    def spec(self, d):
+        return Spec(flow=_dead_band_flow(d))
+
+    def effects(self, d, theta):
+        return {"dead_band": d}
+
+
+def _saturation_gate(x_max):
+    def gate(sig):
+        free = np.abs(sig.x5) < x_max - 3.0 * sig.sigma[3]
+        return x_max, free
+    return gate
+
+
+@dataclass(frozen=True, repr=False)
+class ValveSaturation(Candidate):
+    """Spool end stop at +-x_max [m] (searched): the valve's motion is clipped."""
+
+    name = "valve_saturation"
+    equation = "x5(k) = clip(-a1 x5(k-1) - a2 x5(k-2) + b0 du(k) + b1 du(k-1) + b2 du(k-2), -x_max, x_max)"
+    regressors = ("clip at x_max (valve rows at the stop left out of the fit)",)
+    n_extra = 1
+
+    def grid(self, sig):
+        a = np.abs(sig.x5)
+        top = float(a.max())
+        return [top * f for f in (0.9, 0.95, 0.97, 0.98, 0.99, 0.995, 1.0)]
+
+    def spec(self, x_max):
+        return Spec(valve_gate=_saturation_gate(x_max))
+
+    def effects(self, x_max, theta):
+        return {"x_max": x_max}
+
+
+def _sagged_factor(a: np.ndarray, dp: np.ndarray, r: float) -> np.ndarray:
+    """Flow [m^3/s] through q = a sqrt(2 (dp - r q)) (a >= 0, dp >= 0), as plant_sim.model."""
+    a2 = a * a
+    return -a2 * r + np.sqrt(a2 * a2 * r * r + 2.0 * a2 * dp)
+
+
+def _sag_flow(r):
+    def flow(sig, cfg, x5, p1, p2, theta0):
+        z1, z2 = orifice_factors(x5, p1, p2, cfg.p_s)
+        f1, f2 = x5 * z1, x5 * z2
+        ps = cfg.p_s
+        pos = (x5 > 0) & (ps > p1)
+        neg = (x5 < 0) & (ps > p2)
+        # the supply-side flow per unit theta, at the nominal theta0 (q is not linear in theta)
+        f1 = np.where(pos, _sagged_factor(theta0 * np.abs(x5), np.maximum(ps - p1, 0), r) / theta0, f1)
+        f2 = np.where(neg, -_sagged_factor(theta0 * np.abs(x5), np.maximum(ps - p2, 0), r) / theta0, f2)
+        return f1, f2
+    return flow
+
+
+@dataclass(frozen=True, repr=False)
+class SupplyPressureSag(Candidate):
+    """Supply line resistance R [Pa/(m^3/s)] (searched): the supply orifice sees p_s - R q."""
+
+    name = "supply_pressure_sag"
+    equation = "q_supply = theta x5 sqrt(2 (p_s - R q_supply - p_i))"
+    regressors = ("sagged supply-side flow per unit theta (replaces x5 z1 for x5>0, x5 z2 for x5<0)",)
+    n_extra = 1
+
+    def grid(self, sig):
+        return _geom(1e8, 2e10, 12)
+
+    def spec(self, r):
+        return Spec(flow=_sag_flow(r))
+
+    def effects(self, r, theta):
+        return {"supply_sag": r}
+
+
+def _air_col(sig, cfg, x1, p1, p2):
+    # 1/beta_eff = 1/beta_e + eps p_atm / p^2 = 1/beta_e + eps G'(p) with G(p) = -p_atm / p
+    q1 = np.maximum(p1, _P_MIN_AIR)
+    q2 = np.maximum(p2, _P_MIN_AIR)
+    return -P_ATM / q1, -P_ATM / q2, P_ATM / q1**2, P_ATM / q2**2
+
+
+@dataclass(frozen=True, repr=False)
+class EntrainedAir(Candidate):
+    """Entrained air fraction eps [-]: 1/beta_eff = 1/beta_e + eps p_atm / p^2."""
+
+    name = "entrained_air"
+    equation = "V_i x_i' (1/beta_e + eps p_atm / p_i^2) = +-(q_i -+ A_i v) - leakage"
+    regressors = ("-V_i x_i' p_atm / p_i^2 (chamber equations)",)
+    n_extra = 1
+
+    def spec(self, value):
+        return Spec(chamber_cols={"air_fraction": _air_col})
+
+    def effects(self, value, theta):
+        return {"air_fraction": min(max(theta["chamber"]["air_fraction"], 0.0), 0.99)}
+
+
+@dataclass(frozen=True, repr=False)
+class SensorDelay(Candidate):
+    """Recorded x1 lags by n samples (searched, 1..max_delay); in the loop or in the recording only."""
+
+    name = "sensor_delay"
+    equation = "x1_recorded(k) = x1(k - n);  du = K_p (ug - K_f x1(k - n if in loop else k))"
+    regressors = ("x1, v, a re-aligned by n samples", "du from the re-aligned x1 unless in loop")
+    n_extra = 1
+    max_delay: int = 8
+
+    def grid(self, sig):
+        return [(n, loop) for n in range(1, self.max_delay + 1) for loop in (False, True)]
+
+    def spec(self, value):
+        n, loop = value
+        return Spec(x1_shift=n, du_shift=0 if loop else n)
+
+    def effects(self, value, theta):
+        n, loop = value
+        return {"sensor_delay": n, "sensor_delay_in_loop": loop}
+
+
+LIBRARY: tuple = (
+    StribeckFriction(), ValveSaturation(), ValveDeadBand(), SupplyPressureSag(), EntrainedAir(),
+    SensorDelay(), LoadOffset(),
+)
+"""The candidates, one per ``plant_sim.params.EFFECT_NAMES`` entry."""

@@ -1,0 +1,353 @@
+"""Batch equation-error model of the audit: signals, the three equation blocks, least squares.
+
+The audit works on a whole record at once, so it may smooth without phase lag: every
+channel goes through the same zero-phase Savitzky-Golay filter (``scipy.signal.savgol_filter``),
+derivatives come from the same local polynomial, and all rows refer to the same instant.
+
+The nominal model is the paper's, written as three linear-in-parameter blocks (SI):
+
+* **force** (eq 24): ``A1 x3 - A2 x4 - F_L = m a + (B + f_v) v + f_c sign(v) + K_t x1``
+* **chamber** (eqs 28-38, two rows per sample, shared parameters):
+
+      A1 v  = -(1/beta_e) V1 x3' + theta x5 z1 - C_ip (x3 - x4) - C_ep x3
+      -A2 v = -(1/beta_e) V2 x4' - theta x5 z2 + C_ip (x3 - x4) - C_ep x4
+
+  with V1 = V10 + A1 x1, V2 = V20 - A2 x1, theta = C_d W / sqrt(rho) and z1, z2 the orifice
+  pressure factors of ``plant_sim.model.orifice_z``.
+* **valve** (eqs 39-42): the exact discrete model of the 2nd-order valve on raw samples,
+  ``x5(k) = -a1 x5(k-1) - a2 x5(k-2) + b0 du(k) + b1 du(k-1) + b2 du(k-2)``,
+  ``du = K_p (ug - K_f x1_fb)``; the poles map to omega^2 and 2 zeta omega (z = exp(s h)).
+
+A :class:`Spec` says how the blocks are built (x1 re-aligned, a flow-law transform, a
+spool-stop gate, extra columns); the candidate extensions of ``monitor.audit.candidates``
+are nothing but Specs. ``fit_blocks`` solves each block by least squares on the training
+rows and returns residuals on every row.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from plant_sim.params import RigConfig
+
+__all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
+           "nominal_params", "BLOCKS", "orifice_factors"]
+
+BLOCKS = ("force", "chamber", "valve")
+SG_WINDOW = 31  # [samples] window of the equation filter L (odd)
+SG_LIGHT = 11  # [samples] window of the light smoothing of nonlinear terms' ingredients
+SG_ORDER = 3
+MARGIN = 20  # [samples] rows dropped at both ends (filter edges and x1 re-alignment)
+STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
+
+
+def _sg(x, deriv, h, window=SG_WINDOW):
+    return savgol_filter(x, window, SG_ORDER, deriv=deriv, delta=h, mode="interp", axis=0)
+
+
+@dataclass(frozen=True)
+class Signals:
+    """One record's channels (SI), lightly smoothed ingredients and noise levels.
+
+    Attributes
+    ----------
+    h : float
+        Sample period [s].
+    ug, x1, x3, x4, x5 : arrays (N,)
+        Raw measured channels [V, m, Pa, Pa, m].
+    x1l, vl, x3l, x4l, x5l : arrays (N,)
+        Lightly smoothed position [m], velocity [m/s], pressures [Pa], spool [m]: the
+        ingredients of nonlinear terms (sign(v), the orifice factors), formed before the
+        equation filter.
+    v_noise : float
+        Noise rms of the equation-filtered velocity [m/s].
+    sigma : array (4,)
+        Sensor noise rms of x1 [m], x3 [Pa], x4 [Pa], x5 [m], from 4th differences.
+    gain : array (3,)
+        White-noise gains (l2 norms) of the equation filter and its 1st and 2nd derivative
+        [1, 1/s, 1/s^2]: a channel of noise rms s gives s * gain[k] in its k-th derivative.
+    """
+
+    h: float
+    ug: np.ndarray
+    x1: np.ndarray
+    x3: np.ndarray
+    x4: np.ndarray
+    x5: np.ndarray
+    x1l: np.ndarray
+    vl: np.ndarray
+    x3l: np.ndarray
+    x4l: np.ndarray
+    x5l: np.ndarray
+    v_noise: float
+    sigma: np.ndarray
+    gain: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.ug)
+
+    def smooth(self, x: np.ndarray) -> np.ndarray:
+        """The equation filter L (zero-phase Savitzky-Golay)."""
+        return _sg(x, 0, self.h)
+
+    def deriv(self, x: np.ndarray, k: int = 1) -> np.ndarray:
+        """k-th time derivative of L[x] [unit/s^k]."""
+        return _sg(x, k, self.h)
+
+
+def signals(samples: np.ndarray, h: float) -> Signals:
+    """Noise levels and lightly smoothed ingredients of the (N, 5) samples ``ug, x1, x3, x4, x5``
+    with period h [s]."""
+    s = np.asarray(samples, dtype=float)
+    if s.ndim != 2 or s.shape[1] != 5:
+        raise ValueError(f"samples must be (N, 5): ug, x1, x3, x4, x5; got shape {s.shape}")
+    if len(s) < 10 * MARGIN:
+        raise ValueError(f"need at least {10 * MARGIN} samples, got {len(s)}")
+    if not np.all(np.isfinite(s)):
+        raise ValueError(f"non-finite value in sample {int(np.argwhere(~np.isfinite(s))[0, 0])}")
+    if not (h > 0 and math.isfinite(h)):
+        raise ValueError(f"sample period must be > 0, got {h!r}")
+    ug, x1, x3, x4, x5 = (s[:, i].copy() for i in range(5))
+    # noise from 4th differences (white noise of variance s^2 gives 70 s^2; the median of
+    # chi2(1) is 0.455 times its mean, and the median ignores transients)
+    d4 = np.diff(s[:, 1:], 4, axis=0)
+    sigma = np.sqrt(np.median(d4 * d4, axis=0) / 70.0 / 0.455)
+    imp = np.zeros(4 * SG_WINDOW)
+    imp[2 * SG_WINDOW] = 1.0
+    gain = np.array([float(np.sqrt(np.sum(_sg(imp, k, h) ** 2))) for k in range(3)])
+    light = _sg(s[:, 1:], 0, h, SG_LIGHT)
+    return Signals(h=h, ug=ug, x1=x1, x3=x3, x4=x4, x5=x5,
+                   x1l=light[:, 0], vl=_sg(x1, 1, h, SG_LIGHT), x3l=light[:, 1], x4l=light[:, 2],
+                   x5l=light[:, 3], v_noise=float(sigma[0] * gain[1]), sigma=sigma, gain=gain)
+
+
+def orifice_factors(xv: np.ndarray, p1: np.ndarray, p2: np.ndarray, ps) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised ``plant_sim.model.orifice_z``: (z1, z2) [Pa^0.5] with ``q_i = theta x_v z_i``."""
+    pos = xv >= 0.0
+    d1 = ps - p1
+    d2 = ps - p2
+    z1 = np.where(pos, np.sqrt(2.0 * np.abs(d1)) * np.sign(d1), np.sqrt(2.0 * np.abs(p1)))
+    z2 = np.where(pos, np.sqrt(2.0 * np.abs(p2)), np.sqrt(2.0 * np.abs(d2)) * np.sign(d2))
+    return z1, z2
+
+
+def _shift(x: np.ndarray, n: int) -> np.ndarray:
+    """x advanced by n samples (y[k] = x[k + n]), end held."""
+    if n == 0:
+        return x
+    return np.concatenate([x[n:], np.full(n, x[-1])])
+
+
+@dataclass(frozen=True)
+class Spec:
+    """How to build the equation blocks: the nominal model plus one extension.
+
+    Attributes
+    ----------
+    x1_shift : int
+        Samples by which the recorded x1 lags the pressures (re-aligned in force and chambers).
+    du_shift : int
+        Samples by which the recorded x1 lags what the controller fed back (re-aligned in du).
+    flow : callable or None
+        ``flow(sig, cfg, x5, p1, p2, theta0) -> (f1, f2)`` per sample: the flow law per unit
+        theta replacing ``x5 z1``, ``x5 z2`` [m Pa^0.5] (filtered afterwards).
+    valve_gate : callable or None
+        ``valve_gate(sig) -> (x_max, free)``: a spool stop (one-step predictions clipped to
+        +-x_max [m]) and the samples free of it, the only ones the valve fit uses.
+    force_cols : dict
+        name -> ``fn(sig, cfg, x1, v) -> column`` per sample (filtered afterwards) [N per unit].
+    chamber_cols : dict
+        name -> ``fn(sig, cfg, x1, p1, p2) -> (c1, c2)``: the column is -L[V_i x_i' c_i]
+        (a pressure-dependent compressibility) [m^3/s per unit].
+    """
+
+    x1_shift: int = 0
+    du_shift: int = 0
+    flow: Callable | None = None
+    valve_gate: Callable | None = None
+    force_cols: dict = field(default_factory=dict)
+    chamber_cols: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Block:
+    """One linear equation block ``y = X theta`` over the record's rows.
+
+    ``rows`` are the sample index of each row; ``fit_mask`` the rows a fit may use
+    (all of them unless an extension excludes some); ``clip`` bounds predictions (valve stop).
+    """
+
+    name: str
+    y: np.ndarray
+    X: np.ndarray
+    columns: tuple
+    rows: np.ndarray
+    fit_mask: np.ndarray
+    clip: float = math.inf
+    noise_load: np.ndarray | None = None
+    """(rows, cols, sources): each column's noise as loadings on independent unit noise
+    sources, for bias compensation (S = sum over rows of L L^T)."""
+
+
+def _valid_rows(sig: Signals) -> np.ndarray:
+    return np.arange(MARGIN, sig.n - MARGIN)
+
+
+def _compress(sig, x, v, p, G):
+    # L[V x' G'(p)] with V = V0 + A x: L[(V G(p))'] - A L[v G(p)] ~ D[V G] - A v L[G]
+    return sig.deriv(x * G) - v * sig.smooth(G)
+
+
+def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4) -> dict[str, Block]:
+    """The three blocks under ``spec``, every term of the force and chamber equations passed
+    through the same filter L; ``theta0`` is a nominal C_d W/sqrt(rho) for flow laws that are
+    not linear in it."""
+    rows = _valid_rows(sig)
+    a1, a2 = cfg.A1, cfg.A2
+    n1 = spec.x1_shift
+    x1 = _shift(sig.x1, n1)
+    x1l, vl = _shift(sig.x1l, n1), _shift(sig.vl, n1)
+    x1s, v, acc = sig.smooth(x1), sig.deriv(x1, 1), sig.deriv(x1, 2)
+    p1, p2 = sig.x3, sig.x4
+    p1s, p2s = sig.smooth(p1), sig.smooth(p2)
+
+    # force balance: near-rest rows (|v| within 3 noise sigmas or < 1 mm/s) are dropped for every model
+    r_v = v[rows]
+    keep = np.abs(r_v) > max(3.0 * sig.v_noise, 1e-3)
+    fy = (a1 * p1s - a2 * p2s - cfg.F_L)[rows]
+    fcols = {"m": acc, "B_fv": v, "f_c": sig.smooth(np.sign(vl)), "K_t": x1s}
+    for name, fn in spec.force_cols.items():
+        fcols[name] = sig.smooth(fn(sig, cfg, x1l, vl))
+    fX = np.column_stack([c[rows] for c in fcols.values()])[keep]
+    fnl = np.zeros(fX.shape + (2,))
+    fnl[:, 0, 0] = sig.sigma[0] * sig.gain[2]  # acceleration (2nd-derivative filter)
+    fnl[:, 1, 1] = sig.sigma[0] * sig.gain[1]  # velocity (1st-derivative filter, orthogonal)
+    force = Block("force", fy[keep], fX, tuple(fcols), rows[keep], np.ones(int(keep.sum()), bool),
+                  noise_load=fnl)
+
+    # chambers: V_i x_i' = (V_i x_i)' -+ A_i v x_i
+    v1 = cfg.V10 + a1 * x1
+    v2 = cfg.V20 - a2 * x1
+    ident = lambda p: p  # noqa: E731  (G(p) = p: the oil term)
+    dv1 = _compress(sig, v1, a1 * v, p1, ident(p1))
+    dv2 = _compress(sig, v2, -a2 * v, p2, ident(p2))
+    x5, p1l, p2l = sig.x5l, sig.x3l, sig.x4l
+    if spec.flow is None:
+        z1, z2 = orifice_factors(x5, p1l, p2l, cfg.p_s)
+        f1, f2 = x5 * z1, x5 * z2
+    else:
+        f1, f2 = spec.flow(sig, cfg, x5, p1l, p2l, theta0)
+    ccols = {
+        "inv_beta_e": (-dv1, -dv2),
+        "CdW_sqrt_rho": (sig.smooth(f1), -sig.smooth(f2)),
+        "C_ip": (-(p1s - p2s), p1s - p2s),
+        "C_ep": (-p1s, -p2s),
+    }
+    vs1 = (cfg.V10 + a1 * x1s)[rows]
+    vs2 = (cfg.V20 - a2 * x1s)[rows]
+    load0 = np.concatenate([-vs1 * sig.sigma[1] * sig.gain[1], -vs2 * sig.sigma[2] * sig.gain[1]])
+    loads = [load0, 0 * load0, 0 * load0, 0 * load0]
+    for name, fn in spec.chamber_cols.items():
+        g1, g2, c1, c2 = fn(sig, cfg, x1, p1l, p2l)
+        ccols[name] = (-_compress(sig, v1, a1 * v, p1, g1), -_compress(sig, v2, -a2 * v, p2, g2))
+        loads.append(load0 * np.concatenate([c1[rows], c2[rows]]))
+    cy = np.concatenate([a1 * v[rows], -a2 * v[rows]])
+    cX = np.column_stack([np.concatenate([c[0][rows], c[1][rows]]) for c in ccols.values()])
+    crow = np.concatenate([rows, rows])
+    cnl = np.stack(loads, axis=1)[:, :, None]
+    chamber = Block("chamber", cy, cX, tuple(ccols), crow, np.ones(len(cy), bool), noise_load=cnl)
+
+    # valve ARX on raw samples; du from x1 re-aligned to what the controller saw
+    x1fb = _shift(sig.x1, spec.du_shift)
+    du = cfg.K_p * (sig.ug - cfg.K_f * x1fb)
+    xr = sig.x5
+    k = rows
+    vy = xr[k]
+    vX = np.column_stack([-xr[k - 1], -xr[k - 2], du[k], du[k - 1], du[k - 2]])
+    ug = sig.ug
+    smooth = np.abs(ug[k] - 2.0 * ug[k - 1] + ug[k - 2]) <= STEP_TOL
+    clip = math.inf
+    fit_mask = np.ones(int(smooth.sum()), bool)
+    if spec.valve_gate is not None:
+        clip, free = spec.valve_gate(sig)
+        fit_mask = (free[k] & free[k - 1] & free[k - 2])[smooth]
+    vnl = np.zeros((int(smooth.sum()), 5, 2))
+    vnl[:, 0, 0] = sig.sigma[3]  # -x5(k-1) and -x5(k-2) carry independent sensor noise
+    vnl[:, 1, 1] = sig.sigma[3]
+    valve = Block("valve", vy[smooth], vX[smooth], ("a1", "a2", "b0", "b1", "b2"), k[smooth], fit_mask,
+                  clip, noise_load=vnl)
+    return {"force": force, "chamber": chamber, "valve": valve}
+
+
+@dataclass(frozen=True)
+class Fit:
+    """Least-squares solution of every block and the residuals on all rows.
+
+    ``theta[name]`` maps column names to the bias-compensated values; ``residuals[name]`` is
+    ``y - clip(X theta_ls)`` of the plain least-squares fit, aligned with ``blocks[name].rows``.
+    """
+
+    blocks: dict
+    theta: dict
+    residuals: dict
+
+    def mse(self, name: str, rows_mask: np.ndarray) -> float:
+        r = self.residuals[name][rows_mask]
+        return float(np.mean(r * r)) if len(r) else math.nan
+
+
+def _lstsq(X, y, noise_load=None):
+    """Least squares, bias-compensated when the regressors' noise is known:
+    theta = (X'X - S)^-1 X'y with S = sum over rows of L L^T (errors in variables)."""
+    scale = np.sqrt(np.mean(X * X, axis=0))
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    if noise_load is None:
+        th, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+        return th / scale
+    L = noise_load / scale[None, :, None]
+    R = Xs.T @ Xs - np.einsum("rik,rjk->ij", L, L)
+    th = np.linalg.solve(R, Xs.T @ y)
+    return th / scale
+
+
+def fit_blocks(blocks: dict[str, Block], train_end: int) -> Fit:
+    """Fit each block on its rows with sample index < train_end (and in its fit mask)."""
+    theta, res = {}, {}
+    for name, b in blocks.items():
+        use = (b.rows < train_end) & b.fit_mask
+        if use.sum() < 2 * b.X.shape[1]:
+            raise ValueError(f"{name} equation: only {int(use.sum())} training rows")
+        # parameters: bias-compensated; residuals for ranking: plain least squares, whose
+        # fit is what each model can explain (a bias-compensated fit is not the residual
+        # minimiser, and its excess residual would favour extensions that blunt the noisy column)
+        th = _lstsq(b.X[use], b.y[use], None if b.noise_load is None else b.noise_load[use])
+        th_ls = _lstsq(b.X[use], b.y[use])
+        pred = b.X @ th_ls
+        if math.isfinite(b.clip):
+            pred = np.clip(pred, -b.clip, b.clip)
+        theta[name] = dict(zip(b.columns, th.tolist()))
+        res[name] = b.y - pred
+    return Fit(blocks=blocks, theta=theta, residuals=res)
+
+
+def nominal_params(fit: Fit, cfg: RigConfig, h: float) -> dict[str, float]:
+    """The 11 identified parameters by bus name (``hydromon.contract.PARAM_NAMES``), SI."""
+    f, c, v = fit.theta["force"], fit.theta["chamber"], fit.theta["valve"]
+    out = {"m": f["m"], "B_fv": f["B_fv"], "f_c": f["f_c"], "K_t": f["K_t"],
+           "inv_beta_e": c["inv_beta_e"], "CdW_sqrt_rho": c["CdW_sqrt_rho"], "C_ip": c["C_ip"],
+           "C_ep": c["C_ep"]}
+    a1, a2 = v["a1"], v["a2"]
+    roots = np.roots([1.0, a1, a2]).astype(complex)
+    s = np.log(roots) / h
+    w2 = float(np.real(s[0] * s[1]))
+    tzw = float(-np.real(s[0] + s[1]))
+    dc = (v["b0"] + v["b1"] + v["b2"]) / (1.0 + a1 + a2)
+    out.update(two_zeta_omega=tzw, omega_sv2=w2, K_sv_omega_sv2=dc * w2)
+    return out

@@ -1,0 +1,174 @@
+"""Model audit: hidden effects must be named, clean records must give "none".
+
+The hidden-effect cases are seeded; their magnitudes are "moderate" as defined in
+``hidden_case`` (documented there). The 40-case sweep is marked slow.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+
+import numpy as np
+import pytest
+
+from hydromon.audit_report import to_json, write_report
+from hydromon.commands.audit import read_csv
+from monitor.audit import LIBRARY, AuditOptions, audit
+from plant_sim.degradation import degrade
+from plant_sim.noise import noise_model
+from plant_sim.params import EFFECT_NAMES, Effects
+from plant_sim.profiles import parse_profile
+from plant_sim.simulate import simulate
+
+CASE_NAMES = ("none",) + EFFECT_NAMES
+PROFILES = ("paper-var", "paper-id", "steps", "chirp", "multisine")
+DURATION = 30.0  # [s]
+
+
+def hidden_case(seed: int, name: str | None = None):
+    """A seeded record with one hidden effect (or none).
+
+    Random: the effect (unless given), severity in [0, 0.8) (below the fault band, where the
+    leakage makes the piston crawl), the profile, and u in [0, 1] setting the magnitude:
+    Stribeck peak 150..450 N at v_s 5..20 mm/s; spool stop at 50..80 % of the spool's
+    unsaturated peak; overlap 15..45 um; supply resistance 4e9..1e10 Pa/(m^3/s); air
+    fraction 0.08..0.2; position delay 1..5 samples in or outside the loop; load offset
+    +-(300..1500) N. Realistic sensor noise.
+    """
+    rng = np.random.default_rng(seed)
+    if name is None:
+        name = CASE_NAMES[int(rng.integers(len(CASE_NAMES)))]
+    severity = float(rng.uniform(0.0, 0.8))
+    profile = parse_profile(PROFILES[int(rng.integers(len(PROFILES)))])
+    u = float(rng.uniform())
+    params = degrade(severity)
+    e = {}
+    if name == "stribeck_friction":
+        e = dict(stribeck_F_s=150 + 300 * u, stribeck_v_s=float(rng.uniform(0.005, 0.02)))
+    elif name == "valve_saturation":
+        free = simulate(profile, DURATION, params=params)
+        e = dict(x_max=float(np.abs(free.states[:, 4]).max() * (0.5 + 0.3 * u)))
+    elif name == "valve_dead_band":
+        e = dict(dead_band=1.5e-5 + 3e-5 * u)
+    elif name == "supply_pressure_sag":
+        e = dict(supply_sag=4e9 + 6e9 * u)
+    elif name == "entrained_air":
+        e = dict(air_fraction=0.08 + 0.12 * u)
+    elif name == "sensor_delay":
+        e = dict(sensor_delay=int(rng.integers(1, 6)), sensor_delay_in_loop=bool(rng.integers(2)))
+    elif name == "load_offset":
+        e = dict(load_offset=float(rng.choice([-1.0, 1.0]) * (300 + 1200 * u)))
+    run = simulate(profile, DURATION, params=params, effects=Effects(**e),
+                   noise=noise_model("realistic"), seed=seed)
+    return name, run
+
+
+def test_library_has_one_named_object_per_effect():
+    names = [c.name for c in LIBRARY]
+    assert sorted(names) == sorted(EFFECT_NAMES)
+    for c in LIBRARY:
+        assert c.equation and c.regressors and c.n_extra >= 1
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_clean_record_gives_none(seed):
+    _, run = hidden_case(seed, "none")
+    res = audit(run.samples, run.config)
+    assert res.cause == "none", [(c.name, round(c.score, 1)) for c in res.candidates]
+
+
+@pytest.mark.parametrize("name,seed", [
+    ("load_offset", 3), ("sensor_delay", 4), ("valve_saturation", 5), ("valve_dead_band", 6),
+])
+def test_clear_effects_are_named(name, seed):
+    _, run = hidden_case(seed, name)
+    res = audit(run.samples, run.config)
+    assert res.cause == name, [(c.name, round(c.score, 1)) for c in res.candidates]
+
+
+def test_sensor_delay_tells_loop_from_recording():
+    for loop in (False, True):
+        run = simulate(parse_profile("multisine"), DURATION, params=degrade(0.3),
+                       effects=Effects(sensor_delay=3, sensor_delay_in_loop=loop),
+                       noise=noise_model("realistic"), seed=11)
+        res = audit(run.samples, run.config)
+        assert res.cause == "sensor_delay"
+        assert res.best.effect == {"sensor_delay": 3, "sensor_delay_in_loop": loop}
+
+
+def test_load_offset_value_and_gain():
+    run = simulate(parse_profile("paper-var"), DURATION, params=degrade(0.3),
+                   effects=Effects(load_offset=1000.0), noise=noise_model("realistic"), seed=5)
+    res = audit(run.samples, run.config)
+    assert res.cause == "load_offset"
+    assert abs(res.best.effect["load_offset"] - 1000.0) < 100.0
+    assert res.best.residual_ratio["force"] < 0.5
+
+
+def test_json_and_report(tmp_path):
+    _, run = hidden_case(3, "load_offset")
+    res = audit(run.samples, run.config)
+    doc = json.loads(json.dumps(to_json(res)))
+    assert set(doc) >= {"cause", "candidates", "gain", "params_nominal", "params_extended"}
+    assert {c["name"] for c in doc["candidates"]} == set(EFFECT_NAMES)
+    assert all(set(c) >= {"name", "score", "gain"} for c in doc["candidates"])
+    assert "load_offset" in doc["params_extended"]
+    md = write_report(res, tmp_path / "rep")
+    assert md.exists() and (tmp_path / "rep" / "freerun.png").exists()
+    assert "load_offset" in md.read_text()
+
+
+def test_bad_input_raises():
+    with pytest.raises(ValueError, match="samples"):
+        audit(np.zeros((100, 4)))
+    bad = np.ones((500, 5))
+    bad[7, 2] = np.nan
+    with pytest.raises(ValueError, match="sample 7"):
+        audit(bad)
+    with pytest.raises(ValueError, match="train_fraction"):
+        AuditOptions(train_fraction=1.5)
+    with pytest.raises(ValueError, match="header"):
+        read_csv(io.StringIO("a,b\n1,2\n"))
+
+
+def test_cli_csv_roundtrip(tmp_path, capsys):
+    from hydromon.cli import main
+
+    _, run = hidden_case(3, "load_offset")
+    path = tmp_path / "rec.csv"
+    with open(path, "w") as f:
+        f.write("t,ug,x1,x3,x4,x5\n")
+        for t, row in zip(run.t, run.samples):
+            f.write(",".join(repr(float(v)) for v in (t, *row)) + "\n")
+    assert main(["audit", str(path), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["cause"] == "load_offset"
+
+
+def _sweep(seeds):
+    hits, none_named, gains, rows = 0, 0, [], []
+    for seed in seeds:
+        name, run = hidden_case(seed)
+        res = audit(run.samples, run.config)
+        hits += res.cause == name
+        none_named += name == "none" and res.cause != "none"
+        if res.best is not None and res.cause == name:
+            gains.append(res.best.gain)
+        rows.append((seed, name, res.cause))
+    return hits, none_named, gains, rows
+
+
+def test_hidden_effects_small_sweep():
+    """8 seeded random cases (default CI); the bar is the issue's 90 %."""
+    hits, none_named, gains, rows = _sweep(range(1000, 1008))
+    assert none_named == 0, rows
+    assert hits >= 0.9 * 8, rows
+
+
+@pytest.mark.slow
+def test_hidden_effects_sweep_40():
+    hits, none_named, gains, rows = _sweep(range(2000, 2040))
+    assert none_named == 0, rows
+    assert hits >= 0.9 * 40, rows
+    assert np.median(gains) >= 0.5, gains
