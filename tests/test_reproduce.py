@@ -90,3 +90,76 @@ def test_calibrate_cli_writes_a_ranges_file(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "Table 3" in text and "f_c" in text
     assert Ranges.load(out).params["f_c"].direction == "rising"
+
+
+# ---------------------------------------------------------------- reproduce
+@pytest.fixture(scope="module")
+def reproduced(tmp_path_factory):
+    import contextlib
+    import io
+
+    plots = tmp_path_factory.mktemp("plots")
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["reproduce", "--json", "--calibration-runs", "10", "--plots", str(plots)])
+    assert code == 0
+    return json.loads(out.getvalue()), plots
+
+
+def test_reproduce_json_has_the_contract_keys(reproduced):
+    doc, _ = reproduced
+    assert {"table2", "table3", "table4"} <= set(doc)
+    assert [r["name"] for r in doc["table2"]] == list(PARAM_NAMES)
+    for r in doc["table2"]:
+        assert {"name", "true", "paper", "ours", "rel_err"} <= set(r)
+    assert len(doc["table4"]) == 5
+    for r in doc["table4"]:
+        assert {"group", "paper_grade", "grade", "params"} <= set(r)
+        assert set(r["params"]) == set(PARAM_NAMES)
+    assert {r["name"] for r in doc["table3"]} == set(Ranges.default().params)
+    assert "calibration (10 runs" in doc["table3_source"]
+
+
+def test_reproduce_table2_noise_free_is_within_half_a_percent(reproduced):
+    doc, _ = reproduced
+    rows = {r["name"]: r for r in doc["table2"]}
+    for name, r in rows.items():
+        if name in ("f_c", "C_ep"):
+            continue
+        assert abs(r["rel_err"]) < 0.005, (name, r["rel_err"])
+    # Known gap, not hidden: f_c was -1.75 % at commit 1859751 and -0.38 % with the
+    # monitor/identify.py work in progress on 2026-11-22; the bound is the brief's 2.5 %.
+    assert abs(rows["f_c"]["rel_err"]) < 0.025, rows["f_c"]["rel_err"]
+    assert rows["C_ep"]["true"] == 0 and rows["C_ep"]["rel_err"] is None
+    assert abs(rows["C_ep"]["ours"]) < 1e-13
+    # the paper's literal recipe is within a few % noise-free (monitor.paper_recipe)
+    for name, r in rows.items():
+        if r["true"]:
+            assert abs(r["paper_recipe_rel_err"]) < 0.03, (name, r["paper_recipe_rel_err"])
+
+
+def test_reproduce_table4_grades_equal_the_papers(reproduced):
+    doc, _ = reproduced
+    for r in doc["table4"]:
+        assert r["grade"] == r["paper_grade"] == TABLE4_PAPER_GRADES[r["group"]], r["group"]
+
+
+def test_reproduce_writes_the_three_figures(reproduced):
+    _, plots = reproduced
+    names = sorted(p.name for p in plots.iterdir())
+    assert names == ["fig10_force.png", "fig11_chambers.png", "fig12_valve.png"]
+    assert all((plots / n).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for n in names)
+
+
+def test_reproduce_with_noise_reports_mean_errors_over_seeds():
+    from hydromon.reproduce import reproduce, to_json
+
+    doc = to_json(reproduce(noise="stress", seeds=2, calibration_runs=0))
+    rows = {r["name"]: r for r in doc["table2"]}
+    assert doc["seeds"] == 2 and "default ranges" in doc["table3_source"]
+    # stress noise: the paper's recipe is biased on the valve (about -40 %), ours is not
+    assert rows["omega_sv2"]["paper_recipe_mean_abs_rel_err"] > 0.25
+    assert rows["omega_sv2"]["mean_abs_rel_err"] < 0.02
+    assert "mean_abs_err" in rows["C_ep"]
+    with pytest.raises(ValueError, match="seeds"):
+        reproduce(seeds=0)
