@@ -176,24 +176,15 @@ def bench_memory(n_rigs: int = 10_000) -> dict:
 
 # -- replay -------------------------------------------------------------------------------------
 
-def _replay_path():
-    """A direct-replay function of hydromon.replay if there is one, else None."""
-    try:
-        from hydromon import replay  # noqa: F401  (written by another engineer)
-    except ImportError:
-        return None
-    for name in ("replay_direct", "run_direct"):
-        fn = getattr(replay, name, None)
-        if callable(fn):
-            return fn
-    return None
-
-
 def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int = 3) -> dict:
-    """samples/s of MCAP (in memory) -> read -> decode -> validate -> Fleet.update.
+    """samples/s of a recording (in-memory MCAP) read, decoded, validated and graded.
 
-    Uses our own loop over :func:`hydromon.mcap_io.read_recording` (the replay node's direct
-    path, when present, is reported as ``via``).
+    Two paths over the same ``hydromon sim --to-mcap``-style recording of ``n_rigs`` rigs:
+    ``monitor_core`` (the headline): :func:`hydromon.mcap_io.read_recording` into
+    ``hydromon.monitornode.MonitorCore.process`` in chunks of 4096 messages, the path of
+    ``hydromon replay --direct`` (edge validation, seq checks, Fleet.update, health payloads);
+    ``pydantic``: ``Sample.model_validate_json`` per message into ``Fleet.update`` (no health
+    payloads), used as the headline when there is no monitor node.
     """
     from hydromon.contract import Sample
     from hydromon.fleetfile import spread_fleet
@@ -208,7 +199,7 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
     n_samples = n_rigs * int(round(duration * 100.0))
     chunk = 4096
 
-    def one_pass():
+    def pydantic_pass():
         fleet = Fleet(capacity=n_rigs)
         index = {rid: fleet.add_rig(rid) for rid in spec.ids}
         rig = np.empty(chunk, np.int64)
@@ -233,9 +224,29 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
         if count != n_samples:
             raise RuntimeError(f"replay read {count} samples, expected {n_samples}")
 
-    rate = _median_rate(n_samples, one_pass, repeats)
-    return {"samples_per_s": rate, "rigs": n_rigs, "samples": n_samples, "mcap_bytes": len(data),
-            "via": "hydromon.bench (read_recording + Sample.model_validate_json + Fleet.update)"}
+    out = {"rigs": n_rigs, "samples": n_samples, "mcap_bytes": len(data)}
+    out["pydantic"] = _median_rate(n_samples, pydantic_pass, repeats)
+    try:
+        from hydromon.monitornode import MonitorCore
+    except ImportError:
+        MonitorCore = None
+    if MonitorCore is not None:
+        def core_pass():
+            core = MonitorCore()
+            batch = []
+            for key, payload, _, _ in read_recording(io.BytesIO(data)):
+                batch.append((key, payload))
+                if len(batch) == chunk:
+                    core.process(batch)
+                    batch = []
+            core.process(batch)
+            if core.counters.accepted != n_samples:
+                raise RuntimeError(f"replay accepted {core.counters.accepted} samples, expected {n_samples}")
+
+        out["monitor_core"] = _median_rate(n_samples, core_pass, repeats)
+    out["samples_per_s"] = out.get("monitor_core", out["pydantic"])
+    out["via"] = "monitor_core" if "monitor_core" in out else "pydantic"
+    return out
 
 
 # -- transport ----------------------------------------------------------------------------------
@@ -323,7 +334,8 @@ def machine_info() -> dict:
     import numba
 
     info = {"platform": platform.platform(), "machine": platform.machine(), "cpu_count": os.cpu_count(),
-            "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__}
+            "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
+            "loadavg_1min": os.getloadavg()[0]}  # other work on the machine skews every figure
     from importlib.metadata import PackageNotFoundError, version
     for dist in ("eclipse-zenoh", "mcap", "pydantic", "orjson"):
         try:
@@ -370,16 +382,19 @@ class BenchOptions:
 def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
     """Measure every figure (see the module docstring); progress goes to stderr."""
     q = opts.quick
+    load_start = os.getloadavg()[0]
     duration = 5.0 if q else 60.0
     _log(f"simulating a {duration:g} s paper-var run")
     samples = paper_var_samples(duration)
-    details: dict = {"core_single": {}, "note": {}}
+    details: dict = {"quick": q}
     _log("core_single (batch 1)")
     s1 = bench_core_single(samples, 1, repeats=1 if q else 3)
     _log("core_single (batch 100)")
     s100 = bench_core_single(samples, 100, repeats=1 if q else 3)
     details["core_single"] = {"batch_1": s1, "batch_100": s100, "headline": "batch_1",
-                              "samples": len(samples)}
+                              "samples": len(samples),
+                              "what": "Fleet.update per call: identification, read-out and grading every "
+                                      "10 samples"}
     _log("baseline_naive")
     naive_samples = samples if not q else samples[:300]
     naive = bench_naive(naive_samples, repeats=1)
@@ -389,10 +404,11 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
     n_rigs, ticks = (50, 200) if q else (1000, 1000)
     _log(f"core_batch ({n_rigs} rigs x {ticks} ticks)")
     from hydromon.fleetfile import spread_fleet
-    src_spec = spread_fleet(10, profile="paper-var", noise="realistic")
     from hydromon.simnode import iter_blocks
-    fleet_sim = src_spec.build()
-    source = np.concatenate([b.samples for b in iter_blocks(fleet_sim, ticks, block=1000)], axis=1)
+
+    # 10 distinct rigs (severities 0..1, realistic noise) tiled over the fleet
+    plant = spread_fleet(10, profile="paper-var", noise="realistic").build()
+    source = np.concatenate([b.samples for b in iter_blocks(plant, ticks, block=1000)], axis=1)
     cb = bench_core_batch(source, n_rigs, ticks, repeats=1 if q else 3)
     details["core_batch"] = {"rigs": n_rigs, "ticks": ticks, "batch": n_rigs}
 
@@ -409,15 +425,19 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
 
     live = None
     if opts.live:
-        live = bench_live(opts.live_steps, seconds=opts.live_seconds)
+        if q:  # a smoke run: one small step
+            live = bench_live(opts.live_steps[:1], seconds=min(opts.live_seconds, 3.0), refine=0)
+        else:
+            live = bench_live(opts.live_steps, seconds=opts.live_seconds)
     else:
         live = {"rigs": None, "reason": "skipped (--no-live)"}
 
     return BenchResult(
         core_single=s1, core_batch=cb, replay_direct=rd["samples_per_s"], live=live,
         transport_ceiling=tr["messages_per_s"], baseline_naive=naive, memory_per_rig=mem,
-        speedup_vs_naive=s1 / naive, details=details,
-        timestamp=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"), machine=machine_info(),
+        speedup_vs_naive=s1 / naive, details={**details, "speedup_batch100_vs_naive": s100 / naive},
+        timestamp=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        machine={**machine_info(), "loadavg_1min_start": load_start},
     )
 
 
@@ -584,34 +604,54 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     return out
 
 
-def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0) -> dict:
-    """Step up the rig count until a step loses a sample or misses p99 < 50 ms; the figure is
-    the largest passing step (``rigs`` None with a ``reason`` if none passes or it cannot run)."""
+def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, refine: int = 2) -> dict:
+    """Step up the rig count until a step loses a sample or misses p99 < 50 ms, then bisect
+    ``refine`` times between the last passing and the first failing count (to a multiple of
+    10); the figure is the largest passing step (``rigs`` None with a ``reason`` if none passes
+    or the monitor node is missing)."""
     try:
         import hydromon.monitornode  # noqa: F401
     except ImportError as exc:
         return {"rigs": None, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
                 "reason": f"no monitor node: {exc}"}
     results = []
-    best = None
-    for n in steps:
-        _log(f"live: {n} rigs for {seconds:g} s")
+
+    def run(n):
+        _log(f"live: {n} rigs for {seconds:g} s (load average {os.getloadavg()[0]:.2f})")
+        load = os.getloadavg()[0]
         try:
             r = live_step(n, seconds)
         except (RuntimeError, OSError, ValueError) as exc:
             r = {"rigs": n, "ok": False, "error": str(exc)}
+        r["loadavg_1min"] = load
         _log(f"live: {n} rigs: " + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
                                             for k, v in r.items() if not k.endswith("summary")))
         results.append(r)
+        return r
+
+    best, fail = None, None
+    for n in steps:
+        r = run(n)
         if not r.get("ok"):
+            fail = n
             break
         best = r
+    lo = best["rigs"] if best else 0
+    for _ in range(refine if fail is not None else 0):
+        mid = int(round((lo + fail) / 2 / 10)) * 10
+        if mid <= lo or mid >= fail:
+            break
+        r = run(mid)
+        if r.get("ok"):
+            best, lo = r, mid
+        else:
+            fail = mid
     if best is None:
         return {"rigs": None, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
-                "reason": f"no step passed (first: {steps[0]} rigs)", "steps": results}
-    out = {k: best[k] for k in ("rigs", "samples_per_s", "lost", "p50_ms", "p99_ms", "cpu_sim",
-                                "cpu_monitor", "cpu_probe", "health_missing", "seconds")}
-    out["limited_by"] = (f"{results[-1]['rigs']} rigs failed" if not results[-1].get("ok")
-                         else f"largest step tried ({steps[-1]} rigs)")
+                "reason": f"no step passed (tried {', '.join(str(r['rigs']) for r in results)} rigs)",
+                "steps": results}
+    out = {k: best.get(k) for k in ("rigs", "samples_per_s", "lost", "p50_ms", "p99_ms", "cpu_sim",
+                                    "cpu_monitor", "cpu_probe", "health_missing", "seconds", "loadavg_1min")}
+    out["limited_by"] = (f"{fail} rigs failed" if fail is not None else f"largest step tried ({steps[-1]} rigs)")
     out["steps"] = results
     return out

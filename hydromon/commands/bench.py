@@ -13,7 +13,8 @@ DEFAULT_HISTORY = Path(__file__).resolve().parents[2] / "benchmarks" / "history.
 
 def add_arguments(parser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON document on stdout")
-    parser.add_argument("--quick", action="store_true", help="small sizes (CI, tests); numbers are rougher")
+    parser.add_argument("--quick", action="store_true",
+                        help="small sizes (CI, tests; live: one step of the first rig count, <= 3 s); rougher numbers")
     parser.add_argument("--no-live", action="store_true", help="skip the live sim + monitor step-up")
     parser.add_argument("--live-seconds", type=float, default=10.0, metavar="S",
                         help="window per rig count of the live step-up [s] (default 10; the issue's figure: 60)")
@@ -50,8 +51,10 @@ def print_table(res, stream=None) -> None:
               f"1 rig, batch 1 (live path); batch 100: {_fmt(cs.get('batch_100'))}/s")
     t.add_row("core_batch", _fmt(res.core_batch), "samples/s",
               f"{d.get('core_batch', {}).get('rigs')} rigs, one sample each per update")
+    rd = d.get("replay_direct", {})
     t.add_row("replay_direct", _fmt(res.replay_direct), "samples/s",
-              f"in-memory MCAP, {d.get('replay_direct', {}).get('rigs')} rigs, decode+validate+update")
+              f"in-memory MCAP, {rd.get('rigs')} rigs, via {rd.get('via')}; "
+              f"pydantic+Fleet.update: {_fmt(rd.get('pydantic'))}/s")
     t.add_row("baseline_naive", _fmt(res.baseline_naive), "samples/s",
               f"numpy per sample; core_single is {res.speedup_vs_naive:.1f}x")
     m = res.memory_per_rig
