@@ -120,15 +120,21 @@ def _range_dict(r) -> dict | None:
 
 def _table3(noise: str, runs: int, config: RigConfig):
     paper = Ranges.default()
+    dropped = {}
     if runs > 0:
-        ours = calibrate(simulate_runs(runs, noise=noise, config=config)).ranges
+        cal = calibrate(simulate_runs(runs, noise=noise, config=config), strict=False)
+        ours, dropped = cal.ranges, cal.dropped
         source = f"calibration ({runs} runs, noise {noise}; monitor.calibrate)"
     else:
         ours = paper
         source = "our default ranges (= the paper's Table 3; no calibration run)"
     names = list(paper.params) + [k for k in ours.params if k not in paper.params]
-    rows = [{"name": k, "paper": _range_dict(paper.params.get(k)), "ours": _range_dict(ours.params.get(k))}
-            for k in names]
+    rows = []
+    for k in names:
+        row = {"name": k, "paper": _range_dict(paper.params.get(k)), "ours": _range_dict(ours.params.get(k))}
+        if k in dropped:
+            row["note"] = dropped[k]
+        rows.append(row)
     return rows, source
 
 
@@ -233,8 +239,11 @@ def render(rep: Reproduction, console=None) -> None:
         t.add_column(c, justify="left" if c in ("parameter", "direction") else "right")
     for r in rep.table3:
         d = (r["ours"] or r["paper"])["direction"]
-        t.add_row(r["name"], d, _fmt_range(r["paper"]), _fmt_range(r["ours"]))
+        t.add_row(r["name"], d, _fmt_range(r["paper"]), _fmt_range(r["ours"]) if r["ours"] else "not separable")
     console.print(t)
+    for r in rep.table3:
+        if "note" in r:
+            console.print(f"  {r['note']}")
     t = Table(title=f"Table 4: variable condition ({DURATION:g} s, noise {rep.noise}); paper / ours",
               header_style="bold")
     t.add_column("group")

@@ -86,6 +86,8 @@ class Calibration:
         (NaN where a label has none) for every parameter of PARAM_NAMES.
     overlaps : dict name -> list of j where labels j and j+1 overlap (edge from medians).
     n_used : int, converged runs used.
+    dropped : dict name -> reason, graded parameters left out of ``ranges`` (only with
+        ``strict=False``) because their labels could not be told apart.
     """
 
     ranges: Ranges
@@ -94,6 +96,7 @@ class Calibration:
     label_ranges: dict
     overlaps: dict = field(default_factory=dict)
     n_used: int = 0
+    dropped: dict = field(default_factory=dict)
 
 
 def severities(n: int) -> np.ndarray:
@@ -137,7 +140,8 @@ def _label_ranges(values: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return out
 
 
-def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_EDGES) -> Calibration:
+def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_EDGES,
+              strict: bool = True) -> Calibration:
     """Health ranges from identified runs (module docstring, steps 2-4). Pure.
 
     Parameters
@@ -146,6 +150,10 @@ def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_ED
     template : Ranges
         Which parameters are graded and which are two-level (default: Table 3).
     edges : the four severity band edges that place the x1 thresholds.
+    strict : bool
+        True: a parameter whose edges come out non-monotone is a ValueError. False: it is
+        left out of the ranges and listed in ``Calibration.dropped`` (e.g. B + f_v under
+        realistic noise, whose bands are ~1 % wide, below a 10 s run's precision).
     """
     template = template or Ranges.default()
     th = x1_thresholds(results.severity, results.x1_mean, edges)
@@ -159,7 +167,7 @@ def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_ED
         raise ValueError(f"label(s) {missing} have no converged run; use more runs")
     pars = results.params[use]
     label_ranges = {k: _label_ranges(pars[:, i], lab) for i, k in enumerate(PARAM_NAMES)}
-    out, overlaps = {}, {}
+    out, overlaps, dropped = {}, {}, {}
     for name, tpl in template.params.items():
         v = pars[:, PARAM_NAMES.index(name)]
         med = np.array([np.median(v[lab == j]) for j in range(5)])
@@ -184,13 +192,22 @@ def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_ED
                 overlaps.setdefault(name, []).append(j)
                 e.append(0.5 * (np.median(a) + np.median(b)))
         if not np.all(np.diff(e) > 0):
-            raise ValueError(f"{name}: calibrated edges {[s * x for x in e]} are not monotone "
-                             "(the labels' values overlap too much); use more runs or less noise")
+            msg = (f"{name}: calibrated edges {[round(float(s * x), 6) for x in e]} are not monotone "
+                   "(the labels' values overlap too much); use more runs or less noise")
+            if strict:
+                raise ValueError(msg)
+            dropped[name] = msg
+            continue
         out[name] = ParamRange(direction=direction, edges=tuple(float(s * x) for x in e))
     src = (f"hydromon calibrate: {int(use.sum())} converged runs of {len(labels)}, severities evenly over [0, 1], "
            f"labelled by x1-mean thresholds {[round(float(x), 6) for x in th]} m (the x1 mean at severity "
            f"{list(edges)}); edges are midpoints between adjacent labels' [min, max] (medians where they overlap)")
-    return Calibration(Ranges(params=out, source=src), th, labels, label_ranges, overlaps, int(use.sum()))
+    if dropped:
+        src += f"; left out (labels not separable): {', '.join(dropped)}"
+    if not out:
+        raise ValueError("no graded parameter could be calibrated: " + "; ".join(dropped.values()))
+    return Calibration(Ranges(params=out, source=src), th, labels, label_ranges, overlaps, int(use.sum()),
+                       dropped)
 
 
 def identify_fleet(samples: np.ndarray, config: RigConfig | None = None,

@@ -163,3 +163,15 @@ def test_reproduce_with_noise_reports_mean_errors_over_seeds():
     assert "mean_abs_err" in rows["C_ep"]
     with pytest.raises(ValueError, match="seeds"):
         reproduce(seeds=0)
+
+
+def test_calibrate_unseparable_parameter_raises_or_is_dropped():
+    r = _synthetic()
+    p = r.params.copy()
+    p[:, PARAM_NAMES.index("B_fv")] = 6000 + 500 * np.array([0.1, 0.0, 0.35, 0.25, 0.1, 0.0, 0.7, 0.6, 0.9, 0.8])
+    noisy = RunResults(r.severity, r.x1_mean, p, r.converged)
+    with pytest.raises(ValueError, match="B_fv: calibrated edges .* not monotone"):
+        calibrate(noisy)
+    cal = calibrate(noisy, strict=False)
+    assert "B_fv" not in cal.ranges.params and "B_fv" in cal.dropped
+    assert "f_c" in cal.ranges.params and "left out" in cal.ranges.source
