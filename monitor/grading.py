@@ -10,11 +10,18 @@ Rules (all in :func:`grade_kernel`, which the single-rig and batched paths share
   ``[2.6, 2.2], [2.2, 1.7]`` for K_sv omega^2 are ambiguous; we use the same rule). Values
   beyond Table 3's outer ends clamp: below 4 N f_c is health, above 120 N fault. A two-level
   parameter (C_ip, C_ep) has all four edges at its fault threshold: grade 0 or 4.
-- **SE gating.** With standard error ``s``, the interval ``v +- z s`` is graded at both ends;
-  if the two grades differ by more than one (the interval spans more than one band, e.g. f_c's
-  6 N health band under an SE of several N), the parameter is not placed (-1) and takes no
-  part in the fusion. A non-finite value or SE is never placed. For a two-level parameter an
-  interval over the threshold spans four grades, so it is not placed.
+- **SE gating.** With standard error ``s``, the interval ``v +- z s`` is graded at both ends.
+  A parameter is placed when the interval lies inside one band, or straddles one edge with the
+  band it is held in (hysteresis) on one side. Otherwise it is not placed (-1) and takes no
+  part in the fusion: f_c's 6 N health band under an SE of several N, or B+f_v's 1 % bands
+  under a few % of SE, would otherwise decide the worst-of fusion by noise. A parameter that
+  straddles one edge (grades lo|lo+1) still proves the grade is at least lo: the fused level
+  is never below that floor. When no multi-band parameter is placed (the two-level leakages
+  alone say nothing between health and deterioration), the straddler with the smallest SE
+  relative to its band's width is graded at its value, so a rig near a band edge still gets a
+  grade. (Measured on 180 seeded random rigs, tests/test_grading_random_rigs.py: 97 % right;
+  promoting the most precise straddler whenever it is worse than the placed ones: 95 %.) A non-finite value or SE is never placed. For a two-level parameter an interval
+  over the threshold spans four grades, so it is not placed.
 - **Hysteresis.** Once placed in band ``b`` a parameter leaves it only when its value is past
   the edge by a margin ``m_j = min(margin * |e_j|, half the narrower inner band next to e_j)``
   (default 2 %): the new band is ``b`` clamped to [grade with every edge moved ``m_j`` towards
@@ -178,6 +185,16 @@ def _count_past(u: float, f: np.ndarray, m: np.ndarray, shift: float) -> int:
 
 
 @njit(cache=True)
+def _band_width(g: int, f: np.ndarray) -> float:
+    """Width of band g between edges f (outer bands take their inner neighbour's width)."""
+    if g <= 0:
+        return f[1] - f[0]
+    if g >= 4:
+        return f[3] - f[2]
+    return f[g] - f[g - 1]
+
+
+@njit(cache=True)
 def _p_at_most(g: int, u: float, s: float, f: np.ndarray) -> float:
     """P(true grade <= g) for a true value ~ N(u, s^2) in the worsening coordinate."""
     if g < 0:
@@ -222,6 +239,10 @@ def grade_kernel(values, std_errors, converged, index, sign, edges, margins, z, 
         if not converged[r]:
             continue
         n_placed = 0
+        best_k = -1
+        best_q = np.inf
+        floor = -1
+        n_multi = 0
         for k in range(n_g):
             v = values[r, index[k]]
             s = std_errors[r, index[k]]
@@ -231,18 +252,48 @@ def grade_kernel(values, std_errors, converged, index, sign, edges, margins, z, 
                 f[j] = sign[k] * edges[k, j]
             u = sign[k] * v
             m = margins[k]
-            if _count_past(u + z * s, f, m, 0.0) - _count_past(u - z * s, f, m, 0.0) > 1:
+            lo = _count_past(u - z * s, f, m, 0.0)
+            hi = _count_past(u + z * s, f, m, 0.0)
+            if hi - lo > 1:
                 continue
             b = band[r, k]
+            if hi != lo and not (b == lo or b == hi):
+                # straddles an edge and no held band agrees: not placed, but it proves the
+                # grade is at least lo; the most precise such one (SE relative to its band's
+                # width) may decide between lo and hi below
+                if lo > floor:
+                    floor = lo
+                g = _count_past(u, f, m, 0.0)
+                width = _band_width(g, f)
+                q = s / width if width > 0.0 else np.inf
+                if q < best_q:
+                    best_q = q
+                    best_k = k
+                continue
             if b < 0:
-                b = _count_past(u, f, m, 0.0)
-            else:
+                b = lo
+            elif hi == lo:
                 b = min(max(b, _count_past(u, f, m, 1.0)), _count_past(u, f, m, -1.0))
             band[r, k] = b
             grades[r, k] = b
             n_placed += 1
+            if edges[k, 0] != edges[k, 3]:
+                n_multi += 1
             if b > level[r]:
                 level[r] = b
+        if best_k >= 0:
+            k = best_k
+            for j in range(4):
+                f[j] = sign[k] * edges[k, j]
+            b = _count_past(sign[k] * values[r, index[k]], f, margins[k], 0.0)
+            if n_multi == 0:
+                band[r, k] = b
+                grades[r, k] = b
+                n_placed += 1
+                if b > level[r]:
+                    level[r] = b
+        if floor > level[r]:
+            level[r] = floor
         if level[r] < 0:
             continue
         p_le = 1.0

@@ -101,7 +101,7 @@ class IdentOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    a_force: float = Field(40.0, gt=0)
+    a_force: float = Field(80.0, gt=0)
     a_chamber: float = Field(25.0, gt=0)
     lam: float = Field(1.0, gt=0, le=1)
     warmup: float = Field(0.4, ge=0)

@@ -157,7 +157,7 @@ class Fleet:
     """
 
     def __init__(self, options: IdentOptions | None = None, ranges: Ranges | None = None,
-                 sample_rate: float = 100.0, eval_every: int = 10, grade_z: float = 2.0,
+                 sample_rate: float = 100.0, eval_every: int = 10, grade_z: float = 3.0,
                  grade_margin: float = 0.02, capacity: int = 16):
         if eval_every < 1:
             raise ValueError(f"eval_every must be >= 1, got {eval_every}")

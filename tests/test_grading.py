@@ -227,14 +227,33 @@ def test_confidence_exact_values_is_one():
 
 
 def test_confidence_formula_against_scipy():
-    # f_c 22 +- 1.5 (average, L = 2), K_sv 1.75 +- 0.05 (sub-health), B_fv 6100 +- 10 (sub)
-    v = {**TRUE, "f_c": 22.0, "K_sv_omega_sv2": 1.75, "B_fv": 6100.0}
+    # f_c 30 +- 1.5 (average, L = 2), K_sv 1.85 +- 0.05 (sub-health), B_fv 6100 +- 10 (sub);
+    # each +-2 SE interval inside one band, so all three are placed
+    v = {**TRUE, "f_c": 30.0, "K_sv_omega_sv2": 1.85, "B_fv": 6100.0}
     s = {**ZERO, "f_c": 1.5, "K_sv_omega_sv2": 0.05, "B_fv": 10.0}
     r = Grader().update(v, s, True)
     assert r.level == 2
-    p_le2 = norm.cdf(45, 22, 1.5) * norm.sf(1.4, 1.75, 0.05) * norm.cdf(6250, 6100, 10)
-    p_le1 = norm.cdf(20, 22, 1.5) * norm.sf(1.7, 1.75, 0.05) * norm.cdf(6150, 6100, 10)
+    p_le2 = norm.cdf(45, 30, 1.5) * norm.sf(1.4, 1.85, 0.05) * norm.cdf(6250, 6100, 10)
+    p_le1 = norm.cdf(20, 30, 1.5) * norm.sf(1.7, 1.85, 0.05) * norm.cdf(6150, 6100, 10)
     assert r.confidence == pytest.approx(p_le2 - p_le1, rel=1e-12)
+
+
+def test_interval_straddling_an_edge_is_not_placed_when_another_parameter_is():
+    # f_c 21 +- 1.5 straddles 20: ambiguous, must not decide the worst-of fusion
+    v = {**TRUE, "f_c": 21.0, "K_sv_omega_sv2": 1.85}
+    s = {**ZERO, "f_c": 1.5, "K_sv_omega_sv2": 0.05}
+    r = Grader().update(v, s, True)
+    assert r.param_levels["f_c"] == -1 and r.level == 1
+
+
+def test_fallback_grades_the_most_precise_straddling_parameter():
+    # every graded parameter straddles an edge: the one with the smallest SE relative to its
+    # band's width (K_sv: 0.02 / 0.5) is graded at its value
+    v = {"f_c": 21.0, "K_sv_omega_sv2": 1.71, "B_fv": 6150.0, "C_ip": 3e-11, "C_ep": 0.0}
+    s = {"f_c": 1.5, "K_sv_omega_sv2": 0.02, "B_fv": 20.0, "C_ip": 1e-10, "C_ep": 1e-10}
+    r = Grader().update(v, s, True)
+    assert r.level == 1 and r.param_levels["K_sv_omega_sv2"] == 1
+    assert r.param_levels["f_c"] == -1
 
 
 def test_confidence_held_level_past_edge_with_exact_values_is_zero():
