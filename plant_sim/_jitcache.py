@@ -1,0 +1,44 @@
+"""Point numba's on-disk cache at a directory keyed by a hash of the numerical core's sources.
+
+numba keys a cached function on its own file only: a kernel that calls a changed kernel in
+another module (monitor.pipeline calling monitor.grading, for one) would otherwise load stale
+machine code after an upgrade. Keying the whole directory on every core source file makes any
+change recompile everything once. An explicit NUMBA_CACHE_DIR from the user wins.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+_ROOT = Path(__file__).resolve().parent.parent
+_PACKAGES = ("plant_sim", "monitor")
+
+
+def _source_hash() -> str:
+    h = hashlib.sha256()
+    for pkg in _PACKAGES:
+        for path in sorted((_ROOT / pkg).rglob("*.py")):
+            h.update(path.relative_to(_ROOT).as_posix().encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def configure() -> None:
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "hydromon" / "numba"
+    path = base / _source_hash()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return  # read-only home: numba falls back to __pycache__
+    os.environ["NUMBA_CACHE_DIR"] = str(path)
+    import sys
+
+    if "numba" in sys.modules:  # imported already: its config read the environment
+        sys.modules["numba"].config.CACHE_DIR = str(path)
+
+
+configure()
