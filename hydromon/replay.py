@@ -21,6 +21,7 @@ measured in log time from its first message.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import threading
 import time
@@ -34,8 +35,10 @@ from hydromon.bus import JSON
 from hydromon.contract import DEFAULT_NAMESPACE
 from hydromon.mcap_io import CorruptRecording, TruncatedRecording, read_recording
 
-__all__ = ["KeyFilter", "recording_span", "iter_window", "replay_direct", "replay_bus", "ReplayStats",
+__all__ = ["KeyFilter", "recording_span", "recording_topics", "iter_window", "replay_direct", "replay_bus", "ReplayStats",
            "health_jsonl"]
+
+log = logging.getLogger(__name__)
 
 
 class KeyFilter:
@@ -82,8 +85,7 @@ def _open(src):
         yield src, getattr(src, "name", "<stream>")
 
 
-def recording_span(src) -> tuple[int, int, int]:
-    """``(first_log_time_ns, last_log_time_ns, message_count)`` from the recording's summary."""
+def _summary(src):
     with _open(src) as (f, name):
         try:
             summary = make_reader(f).get_summary()
@@ -91,8 +93,18 @@ def recording_span(src) -> tuple[int, int, int]:
             raise CorruptRecording(f"{name}: {type(exc).__name__}: {exc}") from exc
         if summary is None or summary.statistics is None:
             raise TruncatedRecording(f"{name}: recording has no summary; run `hydromon recover {name}`")
-        st = summary.statistics
-        return int(st.message_start_time), int(st.message_end_time), int(st.message_count)
+        return summary
+
+
+def recording_span(src) -> tuple[int, int, int]:
+    """``(first_log_time_ns, last_log_time_ns, message_count)`` from the recording's summary."""
+    st = _summary(src).statistics
+    return int(st.message_start_time), int(st.message_end_time), int(st.message_count)
+
+
+def recording_topics(src) -> list[str]:
+    """The topics (keys) of the recording, sorted."""
+    return sorted({c.topic for c in _summary(src).channels.values()})
 
 
 def _window(src, start: float | None, duration: float | None) -> tuple[int | None, int | None, int]:
@@ -158,7 +170,7 @@ class ReplayStats:
 
 def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable[str] | None = None,
                start: float | None = None, duration: float | None = None, loop: bool = False,
-               max_passes: int | None = None, stop_event: threading.Event | None = None,
+               max_passes: int | None = None, wait_s: float = 0.0, stop_event: threading.Event | None = None,
                progress: Callable[[float, float], None] | None = None,
                congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
                clock=time.monotonic) -> ReplayStats:
@@ -170,6 +182,10 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
         Speed relative to the recording (1 = as recorded, 0 = as fast as possible).
     loop : bool
         Play the window again and again until ``stop_event`` (or ``max_passes`` passes).
+    wait_s : float
+        Before sending, wait up to this long [s] for a subscriber to match one of the
+        replayed keys (a peer that has just connected may not have heard the others'
+        subscriptions yet, and zenoh drops what has no route); go on without after that.
     progress : callable or None
         Called as ``progress(done_s, total_s)`` in recording seconds of the current pass.
     congestion : zenoh.CongestionControl
@@ -182,6 +198,17 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
     match = KeyFilter(keys)
     stats = ReplayStats()
     pubs: dict[str, zenoh.Publisher] = {}
+    if wait_s > 0:
+        for key in recording_topics(src):
+            if match(key) and key not in pubs:
+                pubs[key] = session.declare_publisher(key, encoding=JSON, congestion_control=congestion)
+        deadline = clock() + wait_s
+        while not any(p.matching_status.matching for p in pubs.values()) and clock() < deadline:
+            if stop.wait(0.01):
+                break
+        else:
+            if pubs and not any(p.matching_status.matching for p in pubs.values()):
+                log.warning("no subscriber for the replayed keys after %.1f s; replaying anyway", wait_s)
     t0 = clock()
     base_ns = 0  # recording time of the start of this pass, relative to the first pass
     try:

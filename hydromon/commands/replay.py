@@ -24,6 +24,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="replay this many seconds of the recording")
     parser.add_argument("--loop", action="store_true", help="play the window again and again until Ctrl-C")
+    parser.add_argument("--wait", type=float, default=3.0, metavar="S",
+                        help="wait up to S seconds for a subscriber before sending (default 3)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--direct", action="store_true",
                         help="no bus: run the monitor in-process over the recording as fast as possible and "
@@ -71,23 +73,27 @@ def run(args) -> int:
         raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
     from hydromon.replay import recording_span, replay_bus
 
-    recording_span(args.file)  # a bad file fails here, before the session opens
+    first, last, _ = recording_span(args.file)  # a bad file fails here, before the session opens
+    total = max(0.0, (last - first) / 1e9 - (args.start or 0.0))
+    if args.duration is not None:
+        total = min(total, args.duration)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with session_from_args(args) as session:
             if args.quiet:
                 stats = replay_bus(session, args.file, rate=args.rate, keys=args.keys, start=args.start,
-                                   duration=args.duration, loop=args.loop, stop_event=stop)
+                                   duration=args.duration, loop=args.loop, stop_event=stop,
+                                   wait_s=args.wait)
             else:
                 from rich.console import Console
                 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
                 with Progress(TextColumn("replay"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.1f} s"),
                               TimeElapsedColumn(), console=Console(stderr=True)) as bar:
-                    task = bar.add_task("replay", total=None)
+                    task = bar.add_task("replay", total=total)
                     stats = replay_bus(session, args.file, rate=args.rate, keys=args.keys, start=args.start,
-                                       duration=args.duration, loop=args.loop, stop_event=stop,
+                                       duration=args.duration, loop=args.loop, stop_event=stop, wait_s=args.wait,
                                        progress=lambda done, total: bar.update(task, completed=done, total=total))
     finally:
         for sig, handler in previous.items():
