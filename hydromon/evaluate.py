@@ -23,7 +23,7 @@ from monitor.pipeline import Assessment, Pipeline
 from plant_sim.params import RigConfig
 
 __all__ = ["CSV_COLUMNS", "Recording", "Evaluation", "read_csv", "load_recording", "check_sampling",
-           "evaluate", "to_json", "render", "PARAM_UNITS"]
+           "evaluate", "to_json", "render", "csv_text", "PARAM_UNITS"]
 
 CSV_COLUMNS = ("t", "ug", "x1", "x3", "x4", "x5")
 RATE_TOL = 0.01  # allowed relative deviation of each sample interval from 1 / sample_rate
@@ -148,7 +148,11 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
             raise ValueError(f"{name}: reading MCAP needs hydromon.mcap_io ({exc})") from None
         if not path.exists():
             raise FileNotFoundError(f"{name}: no such file")
-        rig_id, data, _seq = mcap_io.read_samples(str(path), rig=rig)
+        try:
+            rig_id, data, _seq = mcap_io.read_samples(str(path), rig=rig)
+        except ValueError as exc:
+            hint = " (pick one with --rig ID)" if "several rigs" in str(exc) else ""
+            raise ValueError(f"{name}: {exc}{hint}") from None
         if config is None:
             try:
                 config = mcap_io.read_rig_config(str(path), rig_id)
@@ -213,8 +217,9 @@ def render(ev: Evaluation, console=None) -> None:
     console.print(t)
 
 
-def _csv_text(t: np.ndarray, samples: np.ndarray) -> str:
-    """CSV text of samples (used by tests and tools): header CSV_COLUMNS, full precision."""
+def csv_text(t: np.ndarray, samples: np.ndarray) -> str:
+    """CSV text that :func:`read_csv` reads back exactly: header CSV_COLUMNS, t [s] (N,) and
+    samples (N, 5) [SI] at full precision."""
     out = io.StringIO()
     out.write(",".join(CSV_COLUMNS) + "\n")
     for ti, row in zip(t, samples):

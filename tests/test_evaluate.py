@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hydromon.cli import main
-from hydromon.evaluate import CSV_COLUMNS, _csv_text, evaluate, load_recording, read_csv
+from hydromon.evaluate import CSV_COLUMNS, csv_text, evaluate, load_recording, read_csv
 from plant_sim.degradation import TABLE4_PAPER_GRADES, table4_group
 from plant_sim.profiles import PaperVariable
 from plant_sim.simulate import simulate
@@ -22,7 +22,7 @@ def g4_run():
 @pytest.fixture
 def g4_csv(g4_run, tmp_path):
     p = tmp_path / "g4.csv"
-    p.write_text(_csv_text(g4_run.t, g4_run.samples))
+    p.write_text(csv_text(g4_run.t, g4_run.samples))
     return p
 
 
@@ -52,7 +52,7 @@ def test_cli_json_is_one_document_with_the_contract_keys(g4_csv, capsys):
 
 def test_short_recording_is_converging_with_null_level(g4_run, tmp_path, capsys):
     p = tmp_path / "short.csv"
-    p.write_text(_csv_text(g4_run.t[:200], g4_run.samples[:200]))
+    p.write_text(csv_text(g4_run.t[:200], g4_run.samples[:200]))
     assert main(["evaluate", str(p), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["status"] == "converging" and doc["level"] is None and doc["grade"] == "unknown"
@@ -134,3 +134,17 @@ def test_mcap_recording_is_graded(g4_run, tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["grade"] == "average"
     with pytest.raises(ValueError, match="not in recording"):
         load_recording(p, rig="other")
+
+
+def test_multi_rig_mcap_needs_rig(g4_run, tmp_path):
+    from hydromon.mcap_io import RecordingWriter
+
+    p = tmp_path / "two.mcap"
+    with open(p, "wb") as f, RecordingWriter(f) as w:
+        for rig in ("a", "b"):
+            for k in range(3):
+                payload = dict(seq=k, t=k * 0.01, ug=2.0, x1=0.0, x3=1e6, x4=1e6, x5=0.0)
+                w.write(f"hydro/rig/{rig}/sample", json.dumps(payload).encode(), k * 10**7, k * 10**7)
+    with pytest.raises(ValueError, match="several rigs.*--rig ID"):
+        load_recording(p)
+    assert load_recording(p, rig="b").rig == "b"
