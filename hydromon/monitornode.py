@@ -81,6 +81,7 @@ REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-fi
                   "unknown-field", "bad-value")
 _SAMPLE_FIELDS = ("seq", "t", "ug", "x1", "x3", "x4", "x5")
 _SAMPLE_FIELD_SET = frozenset(_SAMPLE_FIELDS)
+_NUM = (float, int)
 
 
 class Rejected(ValueError):
@@ -173,10 +174,15 @@ def parse_sample(obj) -> tuple[int, float, float, float, float, float, float]:
     ``contract.Sample`` (a fast path for the common valid case; the model decides the rest)."""
     if type(obj) is dict and len(obj) == 7 and obj.keys() == _SAMPLE_FIELD_SET:
         seq = obj["seq"]
-        vals = [obj[k] for k in _SAMPLE_FIELDS[1:]]
-        if type(seq) is int and seq >= 0 and all(
-                (type(v) is float and math.isfinite(v)) or type(v) is int for v in vals):
-            return (seq, *map(float, vals))
+        t, ug, x1, x3, x4, x5 = vals = (obj["t"], obj["ug"], obj["x1"], obj["x3"], obj["x4"], obj["x5"])
+        if type(seq) is int and seq >= 0:
+            try:
+                # finite floats (orjson gives no NaN/inf) or ints; bools, str, None fail here
+                if type(t) in _NUM and type(ug) in _NUM and type(x1) in _NUM and type(x3) in _NUM and \
+                        type(x4) in _NUM and type(x5) in _NUM and math.isfinite(t + ug + x1 + x3 + x4 + x5):
+                    return (seq, float(t), float(ug), float(x1), float(x3), float(x4), float(x5))
+            except OverflowError:  # huge ints
+                pass
     if not isinstance(obj, dict):
         raise Rejected("wrong-type", f"payload is a JSON {type(obj).__name__}, not an object")
     try:
@@ -434,7 +440,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 core: MonitorCore | None = None, capacity: int = 65536, max_batch: int = 20000,
                 poll_s: float = 0.002, on_health: Callable[[str, bytes], None] | None = None,
                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
-                clock=time.monotonic) -> MonitorCore:
+                config_query_s: float = 5.0, clock=time.monotonic) -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
 
     Parameters
@@ -453,6 +459,9 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         Wait when nothing is queued [s].
     on_health : callable or None
         Called with ``(key, payload)`` of each health message after it is published.
+    config_query_s : float
+        At start, the monitor queries ``<ns>/rig/*/config`` for the configs of rigs that
+        are already running; replies count as config messages for this long [s].
 
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
@@ -486,8 +495,23 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     # last: a peer that sees the token has seen the subscribers declared before it
     token = session.liveliness().declare_token(liveliness_key(node_name, namespace))
 
+    # rigs that published their config before we came up: ask their nodes (the sim node
+    # answers on <ns>/rig/*/config); replies are handled as config messages
+    replies = session.get(f"{namespace}/rig/*/config", zenoh.handlers.FifoChannel(4096), timeout=config_query_s)
+    replies_until = clock() + config_query_s + 1.0
+
     def drain() -> int:
+        nonlocal replies
         batch = []
+        if replies is not None:
+            try:
+                while (r := replies.try_recv()) is not None:
+                    if r.ok is not None:
+                        batch.append((str(r.ok.key_expr), r.ok.payload.to_bytes()))
+            except zenoh.ZError:  # the query is over (zenoh closes the reply channel)
+                replies = None
+            if clock() > replies_until:
+                replies = None
         # configs first: a config queued with samples applies to them
         while len(batch) < max_batch and (m := sub_c.try_recv()) is not None:
             batch.append((str(m.key_expr), m.payload.to_bytes()))

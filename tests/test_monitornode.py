@@ -345,3 +345,28 @@ def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
         rig = str(r.key_expr).split("/")[2]
         assert Health.model_validate_json(r.payload.to_bytes()) == got[rig][-1]
     assert [str(r.key_expr) for r in one] == [health_key("table4-g4")]
+
+
+@pytest.mark.network
+@pytest.mark.timeout(60)
+def test_a_monitor_started_late_asks_the_running_rigs_for_their_configs():
+    spec = FleetSpec(config=RigConfig(F_L=3500.0, p_s=11e6), rigs=SPEC.rigs[:2])
+    ep = free_tcp_endpoint()
+    with open_session("peer", listen=[ep]) as sim_s, open_session("peer", connect=[ep]) as mon_s:
+        stop_sim, stop_mon, result = threading.Event(), threading.Event(), {}
+        sim = threading.Thread(target=lambda: run_sim(sim_s, spec, rate=1.0, stop_event=stop_sim), daemon=True)
+        sim.start()  # publishes the configs once, now, while nobody listens
+        core = MonitorCore()
+        mon = threading.Thread(target=lambda: result.update(core=run_monitor(mon_s, stop_event=stop_mon, core=core)),
+                               daemon=True)
+        try:
+            time.sleep(0.5)
+            mon.start()
+            _wait(lambda: len(core.configs) == 2 and core.counters.accepted > 0, 30, "the configs by query")
+        finally:
+            stop_sim.set()
+            sim.join(30)
+            stop_mon.set()
+            mon.join(30)
+    assert core.configs == {r.id: spec.config for r in spec.rigs}
+    assert core.counters.configs == 2 and core.counters.rejected_total == 0
