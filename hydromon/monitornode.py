@@ -349,7 +349,7 @@ class MonitorCore:
             rig.bad_input = True
         seq = vals[0]
         if rig.last_seq >= 0 and seq <= rig.last_seq:
-            if seq == 0:  # the rig restarted (or a replay looped): start it afresh
+            if seq == 0 and rig.last_seq > 0:  # the rig restarted (or a replay looped): start afresh
                 self._flush(out)
                 self.fleet.reset(rig.row)
                 rig.n, rig.since_gap = 0, -1

@@ -35,8 +35,8 @@ from hydromon.bus import JSON
 from hydromon.contract import DEFAULT_NAMESPACE
 from hydromon.mcap_io import CorruptRecording, TruncatedRecording, read_recording
 
-__all__ = ["KeyFilter", "recording_span", "recording_topics", "iter_window", "replay_direct", "replay_bus", "ReplayStats",
-           "health_jsonl"]
+__all__ = ["KeyFilter", "recording_span", "recording_topics", "iter_window", "replay_direct", "replay_bus",
+           "ReplayStats", "health_jsonl"]
 
 log = logging.getLogger(__name__)
 

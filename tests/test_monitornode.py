@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from hydromon.bus import free_tcp_endpoint, open_session
 from hydromon.contract import GRADES, Health, RigConfig, Sample, health_key
 from hydromon.fleetfile import FleetSpec, default_fleet
-from hydromon.monitornode import REJECT_REASONS, MonitorCore, Rejected, parse_sample, run_monitor
+from hydromon.monitornode import REJECT_REASONS, MonitorCore, RateLimitedLog, Rejected, parse_sample, run_monitor
 from hydromon.simnode import iter_blocks, run_sim
 from plant_sim.degradation import TABLE4_PAPER_GRADES
 
@@ -235,6 +235,8 @@ def test_seq_back_to_zero_is_a_restart_and_gives_the_clean_verdicts_again(clean_
     first = CLEAN[:5 + 5 * 300]  # configs + 3 s
     core, health = run_core(first + CLEAN[5:])
     assert core.counters.restarts == 5 and core.counters.dropped_seq == 0
+    dup0 = CLEAN[:6] + [CLEAN[5]] + CLEAN[6:100]  # seq 0 twice in a row: a duplicate, not a restart
+    assert run_core(dup0)[0].counters.duplicate == 1 and run_core(dup0)[0].counters.restarts == 0
     got, want = by_rig(health), by_rig(clean)
     for rig in SPEC.ids:
         assert got[rig][30:] == want[rig]  # 30 health messages before the restart
@@ -370,3 +372,18 @@ def test_a_monitor_started_late_asks_the_running_rigs_for_their_configs():
             mon.join(30)
     assert core.configs == {r.id: spec.config for r in spec.rigs}
     assert core.counters.configs == 2 and core.counters.rejected_total == 0
+
+
+def test_rejection_log_is_rate_limited_per_reason(caplog):
+    now = [0.0]
+    rl = RateLimitedLog(interval=5.0, clock=lambda: now[0])
+    with caplog.at_level("WARNING", logger="hydromon.monitornode"):
+        for i in range(100):
+            now[0] = i * 0.1  # 10 s of rejections
+            rl("not-json", "hydro/rig/a/sample", "bad")
+            if i % 10 == 0:
+                rl("bad-key", "x/y", "nope")
+    lines = [r.getMessage() for r in caplog.records]
+    assert [ln.split()[1] for ln in lines] == ["not-json", "bad-key", "not-json", "bad-key"]
+    assert lines[2].endswith("(+49 more since the last report)")  # 0.1 .. 4.9 s suppressed
+    assert lines[3].endswith("(+4 more since the last report)")
