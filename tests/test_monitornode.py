@@ -387,3 +387,27 @@ def test_rejection_log_is_rate_limited_per_reason(caplog):
     assert [ln.split()[1] for ln in lines] == ["not-json", "bad-key", "not-json", "bad-key"]
     assert lines[2].endswith("(+49 more since the last report)")  # 0.1 .. 4.9 s suppressed
     assert lines[3].endswith("(+4 more since the last report)")
+
+
+@pytest.mark.network
+@pytest.mark.timeout(90)
+def test_monitor_command_runs_for_its_duration_and_reports_its_counts():
+    import os
+    import subprocess
+    import sys
+
+    ep = free_tcp_endpoint()
+    proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--listen", ep, "--duration", "6",
+                             "--node", "cli-mon"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        with open_session("peer", connect=[ep]) as s:
+            _wait(lambda: any(r.ok is not None for r in s.liveliness().get("hydro/monitor/cli-mon", timeout=1.0)),
+                  60, "the monitor process")
+            run_sim(s, FleetSpec(rigs=SPEC.rigs[:2]), rate=0, duration=3.0)
+            s.put("hydro/rig/x/sample", b"{oops")
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert "2 rig(s), 600 samples, 60 health messages; rejected: not-json 1;" in err
