@@ -519,7 +519,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     smallest transport delay, so latencies are under-stated by that, ~0.1 ms) and a health
     message's latency is its arrival minus the deadline of the sample seq it reports.
 
-    Counted over the window [t0 + warm, t0 + warm + seconds] of deadlines: ``lost`` = samples
+    Counted over the window [t0 + warm, t0 + warm + seconds] of deadlines (warm counted from
+    the first health message when that comes later than the first sample): ``lost`` = samples
     the monitor saw missing from the seq (gaps) or dropped as duplicates/out of order (from
     its exit summary, whole run); ``health_missing`` = health messages expected (every rig,
     every ``eval_every`` samples) but not received within ``grace`` after the window.
@@ -566,9 +567,22 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
                 if not samples:
                     raise RuntimeError("no sample reached the probe in 120 s")
                 t_first = samples[0][0]
+                # the window opens `warm` after the monitor's first health (kernels compiled or
+                # loaded from numba's cache, routes up), and never before `warm` after the first sample
+                while not health and clock() < t_first + 300:
+                    if mon.poll() is not None:
+                        raise RuntimeError(f"monitor exited ({mon.returncode}): {open(mon_log).read()[-1500:]}")
+                    time.sleep(0.01)
+                if not health:
+                    raise RuntimeError("no health message reached the probe in 300 s")
+                warm = max(warm, health[0][0] - t_first + warm)
                 time.sleep(max(0.0, t_first + warm - clock()))
                 cpu0 = (_cpu_seconds(sim.pid), _cpu_seconds(mon.pid), time.process_time(), clock())
                 time.sleep(max(0.0, t_first + warm + seconds - clock()))
+                for name, proc, path in (("monitor", mon, mon_log), ("sim", sim, sim_log)):
+                    if proc.poll() is not None:
+                        raise RuntimeError(f"{name} exited ({proc.returncode}) during the window: "
+                                           f"{open(path).read()[-1500:]}")
                 cpu1 = (_cpu_seconds(sim.pid), _cpu_seconds(mon.pid), time.process_time(), clock())
                 time.sleep(grace)
                 _stop(sim)
@@ -613,6 +627,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         "cpu_monitor": (cpu1[1] - cpu0[1]) / wall,
         "cpu_probe": (cpu1[2] - cpu0[2]) / wall,
         "seconds": seconds,
+        "warm_s": warm,
         "monitor_summary": m.group(0) if m else mon_text[-500:],
         "sim_summary": sm.group(0) if sm else sim_text[-500:],
     }
@@ -654,7 +669,8 @@ def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, r
             break
         best = r
     lo = best["rigs"] if best else 0
-    for _ in range(refine if fail is not None else 0):
+    broken = bool(results and "error" in results[-1])  # a crash, not a capacity limit: no bisection
+    for _ in range(refine if fail is not None and not broken else 0):
         mid = int(round((lo + fail) / 2 / 10)) * 10
         if mid <= lo or mid >= fail:
             break
@@ -664,11 +680,14 @@ def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, r
         else:
             fail = mid
     if best is None:
+        reason = f"no step passed (tried {', '.join(str(r['rigs']) for r in results)} rigs)"
+        if broken:
+            reason += f"; error: {results[-1]['error'][:300]}"
         return {"rigs": None, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
-                "reason": f"no step passed (tried {', '.join(str(r['rigs']) for r in results)} rigs)",
-                "steps": results}
+                "reason": reason, "steps": results}
     out = {k: best.get(k) for k in ("rigs", "samples_per_s", "lost", "p50_ms", "p99_ms", "cpu_sim",
                                     "cpu_monitor", "cpu_probe", "health_missing", "seconds", "loadavg_1min")}
-    out["limited_by"] = (f"{fail} rigs failed" if fail is not None else f"largest step tried ({steps[-1]} rigs)")
+    out["limited_by"] = (f"{fail} rigs failed" + (" (error)" if broken else "") if fail is not None
+                         else f"largest step tried ({steps[-1]} rigs)")
     out["steps"] = results
     return out
