@@ -45,10 +45,13 @@ class Candidate:
     regressors : tuple of str
         The columns (or modified regressors) it adds.
     n_extra : int
-        Parameters it adds, the searched one included (the information criterion's k).
+        Parameters it adds, the searched one included (the score's penalty counts them).
+    caveat : str
+        Why a weak win of this candidate should not be trusted ("" = none).
     """
 
     name = ""
+    caveat = ""
     equation = ""
     regressors: tuple = ()
     n_extra = 1
@@ -101,6 +104,8 @@ class StribeckFriction(Candidate):
     equation = "... + f_c sign(v) + F_s exp(-(v/v_s)^2) sign(v) + (B+f_v) v"
     regressors = ("exp(-(v/v_s)^2) sign(v)",)
     n_extra = 2
+    caveat = ("at the record's speeds the Stribeck term is nearly collinear with Coulomb + viscous "
+              "friction, and a sticking piston leaves few usable force rows")
 
     def grid(self, sig):
         return _geom(0.002, 0.04, 7)

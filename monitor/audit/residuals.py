@@ -39,15 +39,30 @@ __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", 
            "nominal_params", "BLOCKS", "orifice_factors"]
 
 BLOCKS = ("force", "chamber", "valve")
-SG_WINDOW = 31  # [samples] window of the equation filter L (odd)
+SG_WINDOW = 31  # [samples] window of the chamber equations' filter L (odd)
+FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction acts near rest: keep it short)
 SG_LIGHT = 11  # [samples] window of the light smoothing of nonlinear terms' ingredients
 SG_ORDER = 3
-MARGIN = 20  # [samples] rows dropped at both ends (filter edges and x1 re-alignment)
+MARGIN = 25  # [samples] rows dropped at both ends (filter edges and x1 re-alignment)
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
 
 def _sg(x, deriv, h, window=SG_WINDOW):
-    return savgol_filter(x, window, SG_ORDER, deriv=deriv, delta=h, mode="interp", axis=0)
+    """Savitzky-Golay smoothing; derivatives are central differences of the smoothed signal,
+    so that a derivative is the equation filter applied to the derivative, (L x)' = L[x'],
+    at every frequency L passes (the SG derivative filter is not: it differs from
+    j omega L(omega) where L attenuates, which misfits the equations on fast inputs)."""
+    y = savgol_filter(x, window, SG_ORDER, deriv=0, mode="interp", axis=0)
+    if deriv == 0:
+        return y
+    if deriv == 1:
+        return np.gradient(y, h, axis=0)
+    if deriv == 2:
+        d = np.zeros_like(y)
+        d[1:-1] = (y[2:] - 2.0 * y[1:-1] + y[:-2]) / (h * h)
+        d[0], d[-1] = d[1], d[-2]
+        return d
+    raise ValueError(f"derivative order must be 0, 1 or 2, got {deriv!r}")
 
 
 @dataclass(frozen=True)
@@ -68,9 +83,9 @@ class Signals:
         Noise rms of the equation-filtered velocity [m/s].
     sigma : array (4,)
         Sensor noise rms of x1 [m], x3 [Pa], x4 [Pa], x5 [m], from 4th differences.
-    gain : array (3,)
-        White-noise gains (l2 norms) of the equation filter and its 1st and 2nd derivative
-        [1, 1/s, 1/s^2]: a channel of noise rms s gives s * gain[k] in its k-th derivative.
+    gain, gain_f : array (3,)
+        White-noise gains (l2 norms) of the chamber (force) equation filter and its 1st and 2nd
+        derivative [1, 1/s, 1/s^2]: a channel of noise rms s gives s * gain[k] in its k-th derivative.
     """
 
     h: float
@@ -87,18 +102,19 @@ class Signals:
     v_noise: float
     sigma: np.ndarray
     gain: np.ndarray
+    gain_f: np.ndarray
 
     @property
     def n(self) -> int:
         return len(self.ug)
 
-    def smooth(self, x: np.ndarray) -> np.ndarray:
+    def smooth(self, x: np.ndarray, window: int = SG_WINDOW) -> np.ndarray:
         """The equation filter L (zero-phase Savitzky-Golay)."""
-        return _sg(x, 0, self.h)
+        return _sg(x, 0, self.h, window)
 
-    def deriv(self, x: np.ndarray, k: int = 1) -> np.ndarray:
+    def deriv(self, x: np.ndarray, k: int = 1, window: int = SG_WINDOW) -> np.ndarray:
         """k-th time derivative of L[x] [unit/s^k]."""
-        return _sg(x, k, self.h)
+        return _sg(x, k, self.h, window)
 
 
 def signals(samples: np.ndarray, h: float) -> Signals:
@@ -121,10 +137,12 @@ def signals(samples: np.ndarray, h: float) -> Signals:
     imp = np.zeros(4 * SG_WINDOW)
     imp[2 * SG_WINDOW] = 1.0
     gain = np.array([float(np.sqrt(np.sum(_sg(imp, k, h) ** 2))) for k in range(3)])
+    gain_f = np.array([float(np.sqrt(np.sum(_sg(imp, k, h, FORCE_WINDOW) ** 2))) for k in range(3)])
     light = _sg(s[:, 1:], 0, h, SG_LIGHT)
     return Signals(h=h, ug=ug, x1=x1, x3=x3, x4=x4, x5=x5,
                    x1l=light[:, 0], vl=_sg(x1, 1, h, SG_LIGHT), x3l=light[:, 1], x4l=light[:, 2],
-                   x5l=light[:, 3], v_noise=float(sigma[0] * gain[1]), sigma=sigma, gain=gain)
+                   x5l=light[:, 3], v_noise=float(sigma[0] * gain_f[1]), sigma=sigma, gain=gain,
+                   gain_f=gain_f)
 
 
 def orifice_factors(xv: np.ndarray, p1: np.ndarray, p2: np.ndarray, ps) -> tuple[np.ndarray, np.ndarray]:
@@ -193,6 +211,10 @@ class Block:
     noise_load: np.ndarray | None = None
     """(rows, cols, sources): each column's noise as loadings on independent unit noise
     sources, for bias compensation (S = sum over rows of L L^T)."""
+    rank_ls: bool = False
+    """Rank on the plain least-squares residual (True) rather than the bias-compensated one
+    less its noise share: for the valve, whose compensated fit turns degenerate (poles
+    near 1) when the model is wrong, which the noise correction would then reward."""
 
 
 def _valid_rows(sig: Signals) -> np.ndarray:
@@ -213,21 +235,26 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     n1 = spec.x1_shift
     x1 = _shift(sig.x1, n1)
     x1l, vl = _shift(sig.x1l, n1), _shift(sig.vl, n1)
-    x1s, v, acc = sig.smooth(x1), sig.deriv(x1, 1), sig.deriv(x1, 2)
     p1, p2 = sig.x3, sig.x4
-    p1s, p2s = sig.smooth(p1), sig.smooth(p2)
+    w = FORCE_WINDOW
+    vf = sig.deriv(x1, 1, w)
 
-    # force balance: near-rest rows (|v| within 3 noise sigmas or < 1 mm/s) are dropped for every model
-    r_v = v[rows]
-    keep = np.abs(r_v) > max(3.0 * sig.v_noise, 1e-3)
-    fy = (a1 * p1s - a2 * p2s - cfg.F_L)[rows]
-    fcols = {"m": acc, "B_fv": v, "f_c": sig.smooth(np.sign(vl)), "K_t": x1s}
+    # force balance: rows whose filter window holds a near-rest instant (|v| within 3 noise
+    # sigmas or < 1 mm/s, where a sticking piston's friction is not sign(v)) are dropped for every model
+    slow = (np.abs(vl) < max(3.0 * sig.v_noise, 5e-4)).astype(float)
+    near = np.convolve(slow, np.ones(w), mode="same") > 0
+    keep = ~near[rows]
+    fy = sig.smooth(a1 * p1 - a2 * p2 - cfg.F_L, w)[rows]
+    fcols = {"m": sig.deriv(x1, 2, w), "B_fv": vf, "f_c": sig.smooth(np.sign(vl), w), "K_t": sig.smooth(x1, w)}
     for name, fn in spec.force_cols.items():
-        fcols[name] = sig.smooth(fn(sig, cfg, x1l, vl))
+        fcols[name] = sig.smooth(fn(sig, cfg, x1l, vl), w)
     fX = np.column_stack([c[rows] for c in fcols.values()])[keep]
     fnl = np.zeros(fX.shape + (2,))
-    fnl[:, 0, 0] = sig.sigma[0] * sig.gain[2]  # acceleration (2nd-derivative filter)
-    fnl[:, 1, 1] = sig.sigma[0] * sig.gain[1]  # velocity (1st-derivative filter, orthogonal)
+    fnl[:, 0, 0] = sig.sigma[0] * sig.gain_f[2]  # acceleration (2nd-derivative filter)
+    fnl[:, 1, 1] = sig.sigma[0] * sig.gain_f[1]  # velocity (1st-derivative filter, orthogonal)
+
+    x1s, v = sig.smooth(x1), sig.deriv(x1, 1)
+    p1s, p2s = sig.smooth(p1), sig.smooth(p2)
     force = Block("force", fy[keep], fX, tuple(fcols), rows[keep], np.ones(int(keep.sum()), bool),
                   noise_load=fnl)
 
@@ -237,7 +264,7 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     ident = lambda p: p  # noqa: E731  (G(p) = p: the oil term)
     dv1 = _compress(sig, v1, a1 * v, p1, ident(p1))
     dv2 = _compress(sig, v2, -a2 * v, p2, ident(p2))
-    x5, p1l, p2l = sig.x5l, sig.x3l, sig.x4l
+    x5, p1l, p2l = sig.x5, sig.x3, sig.x4  # raw: the product is formed first, then filtered
     if spec.flow is None:
         z1, z2 = orifice_factors(x5, p1l, p2l, cfg.p_s)
         f1, f2 = x5 * z1, x5 * z2
@@ -281,25 +308,34 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     vnl[:, 0, 0] = sig.sigma[3]  # -x5(k-1) and -x5(k-2) carry independent sensor noise
     vnl[:, 1, 1] = sig.sigma[3]
     valve = Block("valve", vy[smooth], vX[smooth], ("a1", "a2", "b0", "b1", "b2"), k[smooth], fit_mask,
-                  clip, noise_load=vnl)
+                  clip, noise_load=vnl, rank_ls=True)
     return {"force": force, "chamber": chamber, "valve": valve}
 
 
 @dataclass(frozen=True)
 class Fit:
-    """Least-squares solution of every block and the residuals on all rows.
+    """Bias-compensated least-squares solution of every block and its residuals on all rows.
 
-    ``theta[name]`` maps column names to the bias-compensated values; ``residuals[name]`` is
-    ``y - clip(X theta_ls)`` of the plain least-squares fit, aligned with ``blocks[name].rows``.
+    ``theta[name]`` maps column names to values; ``residuals[name]`` is ``y - clip(X theta)``
+    (theta of plain least squares for blocks ranked so) aligned with ``blocks[name].rows``;
+    ``noise_terms[name]`` is each row's expected share of
+    the squared residual that comes from noise in the regressors, ``|L_r' theta|^2``.
     """
 
     blocks: dict
     theta: dict
     residuals: dict
+    noise_terms: dict
 
     def mse(self, name: str, rows_mask: np.ndarray) -> float:
+        """Mean squared residual over the rows, less the regressor-noise share (so models
+        whose columns carry the same noise differently compare on what they explain);
+        floored at 1 % of the raw mean."""
         r = self.residuals[name][rows_mask]
-        return float(np.mean(r * r)) if len(r) else math.nan
+        if not len(r):
+            return math.nan
+        raw = float(np.mean(r * r))
+        return max(raw - float(np.mean(self.noise_terms[name][rows_mask])), 0.01 * raw)
 
 
 def _lstsq(X, y, noise_load=None):
@@ -319,22 +355,24 @@ def _lstsq(X, y, noise_load=None):
 
 def fit_blocks(blocks: dict[str, Block], train_end: int) -> Fit:
     """Fit each block on its rows with sample index < train_end (and in its fit mask)."""
-    theta, res = {}, {}
+    theta, res, noise = {}, {}, {}
     for name, b in blocks.items():
         use = (b.rows < train_end) & b.fit_mask
         if use.sum() < 2 * b.X.shape[1]:
             raise ValueError(f"{name} equation: only {int(use.sum())} training rows")
-        # parameters: bias-compensated; residuals for ranking: plain least squares, whose
-        # fit is what each model can explain (a bias-compensated fit is not the residual
-        # minimiser, and its excess residual would favour extensions that blunt the noisy column)
         th = _lstsq(b.X[use], b.y[use], None if b.noise_load is None else b.noise_load[use])
-        th_ls = _lstsq(b.X[use], b.y[use])
-        pred = b.X @ th_ls
+        theta[name] = dict(zip(b.columns, th.tolist()))
+        if b.rank_ls:
+            th = _lstsq(b.X[use], b.y[use])
+        pred = b.X @ th
         if math.isfinite(b.clip):
             pred = np.clip(pred, -b.clip, b.clip)
-        theta[name] = dict(zip(b.columns, th.tolist()))
         res[name] = b.y - pred
-    return Fit(blocks=blocks, theta=theta, residuals=res)
+        if b.noise_load is None or b.rank_ls:
+            noise[name] = np.zeros(len(b.y))
+        else:
+            noise[name] = np.sum(np.einsum("rck,c->rk", b.noise_load, th) ** 2, axis=1)
+    return Fit(blocks=blocks, theta=theta, residuals=res, noise_terms=noise)
 
 
 def nominal_params(fit: Fit, cfg: RigConfig, h: float) -> dict[str, float]:
