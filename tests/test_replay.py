@@ -7,6 +7,7 @@ import io
 import threading
 import time
 
+import numpy as np
 import orjson
 import pytest
 
@@ -126,3 +127,79 @@ def test_bus_replay_into_the_monitor_gives_the_direct_health_on_every_pass(recor
     assert sorted(want) == sorted(have)
     for key in want:  # each rig's verdicts, byte for byte, twice (the second pass restarts the rig)
         assert have[key] == want[key] + want[key]
+
+
+class _FakeTime:
+    """A clock and a stop event in one: waiting advances the clock (no real sleeping)."""
+
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self):
+        return self.now
+
+    def is_set(self):
+        return False
+
+    def wait(self, s):
+        self.now += s
+        return False
+
+
+class _FakeSession:
+    def __init__(self, clock, put_cost=0.0):
+        self.clock, self.put_cost, self.sent = clock, put_cost, []
+
+    def declare_publisher(self, key, **kw):
+        session = self
+
+        class Pub:
+            matching_status = type("M", (), {"matching": True})()
+
+            def put(self, payload):
+                session.sent.append((key, session.clock.now))
+                session.clock.now += session.put_cost
+
+            def undeclare(self):
+                pass
+
+        return Pub()
+
+
+@pytest.mark.parametrize("rate", [1.0, 2.5])
+def test_pacing_follows_the_recording_without_drift(recording, rate):
+    ft = _FakeTime()
+    session = _FakeSession(ft)
+    stats = replay_bus(session, recording, rate=rate, keys=["hydro/rig/table4-g1/*"], stop_event=ft, clock=ft)
+    log_times = [t for _, _, t in iter_window(recording, keys=["hydro/rig/table4-g1/*"])]
+    assert stats.published == len(log_times) == 501
+    # every message at t0 + offset / rate, computed from the recording, not summed sleeps
+    sent = np.array([t for _, t in session.sent]) - 100.0
+    np.testing.assert_allclose(sent, (np.array(log_times) - log_times[0]) / 1e9 / rate, rtol=0, atol=1e-9)
+
+
+def test_late_sends_do_not_shift_later_deadlines(recording):
+    ft = _FakeTime()
+    keys = ["hydro/rig/table4-g1/sample"]
+    log_times = np.array([t for _, _, t in iter_window(recording, keys=keys)])
+    due = (log_times - log_times[0]) / 1e9
+
+    class Slow(_FakeSession):  # the 10th put takes 0.5 s: the next 49 go out late, at once
+        def declare_publisher(self, key, **kw):
+            pub = super().declare_publisher(key, **kw)
+            put = pub.put
+
+            def slow_put(payload):
+                put(payload)
+                if len(self.sent) == 10:
+                    self.clock.now += 0.5
+            pub.put = slow_put
+            return pub
+
+    session = Slow(ft)
+    stats = replay_bus(session, recording, rate=1.0, keys=keys, stop_event=ft, clock=ft)
+    sent = np.array([t for _, t in session.sent]) - 100.0
+    assert stats.max_late == pytest.approx(0.5 - 0.01, abs=1e-9)
+    late = sent > due + 1e-9
+    assert late.sum() == 49 and np.all(sent[late] == sent[10])  # sent back to back when late
+    np.testing.assert_allclose(sent[~late], due[~late], rtol=0, atol=1e-9)  # back on the grid after
