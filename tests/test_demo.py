@@ -14,6 +14,7 @@ from hydromon.contract import Health
 from hydromon.demo import render_plain, true_grade
 from hydromon.fleetfile import RigSpec, default_fleet
 from hydromon.mcap_io import read_recording
+from hydromon.replay import replay_direct
 
 
 def test_true_grades_and_plain_table():
@@ -46,12 +47,18 @@ def test_demo_runs_twice_in_a_row_and_records(tmp_path):
         assert "5/5 rigs at their true grade" in proc.stdout, proc.stdout
         assert "rejected 0, gaps 0, dropped seq 0" in proc.stderr
     kinds = Counter()
-    last = {}
+    last, recorded = {}, {}
     for key, payload, _, _ in read_recording(files[-1]):
         leaf = key.rsplit("/", 1)[1]
         kinds[leaf] += 1
         if leaf == "health":
             last[key.split("/")[2]] = Health.model_validate_json(payload)
+            recorded.setdefault(key, []).append(payload)
+    # live equals replay: the recording, graded again in-process, gives the live verdicts
+    replayed = {}
+    for key, payload in replay_direct(files[-1])[0]:
+        replayed.setdefault(key, []).append(payload)
+    assert replayed == recorded
     assert kinds["config"] == 5 and kinds["sample"] >= 5 * 500
     # every verdict the monitor made is in the recording: one per 10 samples of each rig
     assert kinds["sample"] % 5 == 0  # the sim sends every rig's sample of an instant together
