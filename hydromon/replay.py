@@ -15,7 +15,10 @@
 ``keys`` are zenoh key expressions matched against topics with ``KeyExpr.intersects``
 (``*`` is one chunk, ``**`` any number of chunks, ``$*`` part of a chunk), e.g.
 ``hydro/rig/*/sample``. ``start`` and ``duration`` [s] cut a window out of the recording,
-measured in log time from its first message.
+measured in log time from its first message. A recording made by ``hydromon demo`` or
+``hydromon record`` holds the monitor's verdicts too; to have a live monitor grade a
+replay afresh, replay only ``<ns>/rig/*/sample`` and ``<ns>/rig/*/config`` (else the old
+verdicts go out on the same keys as the new ones).
 """
 
 from __future__ import annotations
