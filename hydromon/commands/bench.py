@@ -76,8 +76,22 @@ def print_table(res, stream=None) -> None:
     mi = res.machine
     console.print(f"{mi.get('platform')}, {mi.get('cpu_count')} cpus ({mi.get('cpu', '?')}), python "
                   f"{mi.get('python')}, numpy {mi.get('numpy')}, numba {mi.get('numba')}")
-    for step in live.get("steps", []) or []:
-        console.print(f"  live {step.get('rigs')} rigs: {step}")
+    steps = live.get("steps") or []
+    if steps:
+        st = Table(title="live step-up (sim --rate 1 + monitor, loopback)")
+        for col in ("rigs", "ok", "lost", "health missing", "p50 ms", "p99 ms", "cpu sim", "cpu monitor", "load"):
+            st.add_column(col, justify="right")
+        for r in steps:
+            if "error" in r:
+                st.add_row(str(r["rigs"]), "error", "", "", "", "", "", "", _fmt(r.get("loadavg_1min")))
+                continue
+            st.add_row(str(r["rigs"]), "yes" if r.get("ok") else "no", _fmt(r.get("lost")),
+                       _fmt(r.get("health_missing")), _fmt(r.get("p50_ms")), _fmt(r.get("p99_ms")),
+                       _fmt(r.get("cpu_sim")), _fmt(r.get("cpu_monitor")), _fmt(r.get("loadavg_1min")))
+        console.print(st)
+        for r in steps:
+            if "error" in r:
+                console.print(f"live {r['rigs']} rigs: error: {r['error']}")
 
 
 def run(args) -> int:
