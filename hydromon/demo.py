@@ -173,6 +173,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     stream : text stream
         Where the table goes (default stdout); ``log`` gets progress lines (default stderr).
     """
+    from monitor.pipeline import warm_up
     from hydromon.monitornode import MonitorCore, RateLimitedLog, run_monitor
     from hydromon.recorder import record
     from hydromon.simnode import run_sim
@@ -197,6 +198,9 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     core = MonitorCore(namespace, on_reject=RateLimitedLog())
     path = _recording_path(out_dir)
 
+    print("hydromon demo: loading the numerical kernels (compiled once on a fresh machine, "
+          "about a minute)...", file=log, flush=True)
+    warm_up()
     with open_session("peer", listen=[endpoint], multicast=False) as session:
         sub = session.declare_subscriber(f"{namespace}/rig/*/health", zenoh.handlers.FifoChannel(100_000))
 

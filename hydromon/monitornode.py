@@ -71,7 +71,7 @@ from pydantic import ValidationError
 from hydromon.bus import JSON
 from hydromon.contract import (DEFAULT_NAMESPACE, GRADES, PARAM_NAMES, RigConfig, Sample, _check_ns,
                                health_key, liveliness_key, valid_rig_id)
-from monitor.pipeline import Fleet
+from monitor.pipeline import Fleet, warm_up
 
 __all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "run_monitor", "REJECT_REASONS"]
 
@@ -469,6 +469,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     core = core or MonitorCore(namespace, on_reject=RateLimitedLog())
     if core.namespace != namespace:
         raise ValueError(f"core namespace {core.namespace!r} != {namespace!r}")
+    warm_up()  # compile before subscribing: the first samples must not queue behind the compiler
     stop = stop_event if stop_event is not None else threading.Event()
     deadline = None if duration is None else clock() + duration
     pubs: dict[str, zenoh.Publisher] = {}
