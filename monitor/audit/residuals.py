@@ -38,7 +38,9 @@ from plant_sim.params import RigConfig
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
            "nominal_params", "BLOCKS", "orifice_factors"]
 
-BLOCKS = ("force", "chamber", "valve")
+BLOCKS = ("force", "rest", "chamber", "valve")
+REST_FLOOR = 4.0  # [N^2] floor of the rest block's variance (2 N rms: below it, nothing is held)
+STATIC_GRID = np.linspace(0.0, 600.0, 61)  # [N] static friction above Coulomb searched by ``static_search``
 SG_WINDOW = 31  # [samples] window of the chamber equations' filter L (odd)
 FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction acts near rest: keep it short)
 SG_LIGHT = 11  # [samples] window of the light smoothing of nonlinear terms' ingredients
@@ -191,6 +193,8 @@ class Spec:
     valve_gate: Callable | None = None
     force_cols: dict = field(default_factory=dict)
     chamber_cols: dict = field(default_factory=dict)
+    static_search: bool = False
+    """Fit a static friction level above Coulomb, F_s [N], to the rest rows (breakaway)."""
 
 
 @dataclass(frozen=True)
@@ -211,6 +215,13 @@ class Block:
     noise_load: np.ndarray | None = None
     """(rows, cols, sources): each column's noise as loadings on independent unit noise
     sources, for bias compensation (S = sum over rows of L L^T)."""
+    static: tuple = ()
+    """Rest block: the force columns that are friction (left out of the net force; their
+    coefficients set the static friction level)."""
+    margin: float = 0.0
+    """Rest block: noise allowance added to the static friction level [N]."""
+    search: bool = False
+    """Rest block: search an extra static level F_s on ``STATIC_GRID``."""
     rank_ls: bool = False
     """Rank on the plain least-squares residual (True) rather than the bias-compensated one
     less its noise share: for the valve, whose compensated fit turns degenerate (poles
@@ -257,6 +268,13 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     p1s, p2s = sig.smooth(p1), sig.smooth(p2)
     force = Block("force", fy[keep], fX, tuple(fcols), rows[keep], np.ones(int(keep.sum()), bool),
                   noise_load=fnl)
+    # rest rows: the piston (nearly) stands still, friction holds whatever the net force is up
+    # to the static level; residual = the net force beyond it (a dead zone), see fit_blocks
+    still = slow[rows] > 0
+    sigma_net = math.hypot(a1 * sig.sigma[1], a2 * sig.sigma[2]) * sig.gain_f[0]
+    rX = np.column_stack([c[rows] for c in fcols.values()])[still]
+    rest = Block("rest", fy[still], rX, tuple(fcols), rows[still], np.ones(int(still.sum()), bool),
+                 static=("f_c",), margin=2.0 * sigma_net, search=spec.static_search)
 
     # chambers: V_i x_i' = (V_i x_i)' -+ A_i v x_i
     v1 = cfg.V10 + a1 * x1
@@ -309,7 +327,7 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     vnl[:, 1, 1] = sig.sigma[3]
     valve = Block("valve", vy[smooth], vX[smooth], ("a1", "a2", "b0", "b1", "b2"), k[smooth], fit_mask,
                   clip, noise_load=vnl, rank_ls=True)
-    return {"force": force, "chamber": chamber, "valve": valve}
+    return {"force": force, "rest": rest, "chamber": chamber, "valve": valve}
 
 
 @dataclass(frozen=True)
@@ -335,7 +353,8 @@ class Fit:
         if not len(r):
             return math.nan
         raw = float(np.mean(r * r))
-        return max(raw - float(np.mean(self.noise_terms[name][rows_mask])), 0.01 * raw)
+        floor = REST_FLOOR if name == "rest" else 0.01 * raw
+        return max(raw - float(np.mean(self.noise_terms[name][rows_mask])), floor)
 
 
 def _lstsq(X, y, noise_load=None):
@@ -353,10 +372,30 @@ def _lstsq(X, y, noise_load=None):
     return th / scale
 
 
+def _dead_zone(r: np.ndarray, level: float) -> np.ndarray:
+    return np.sign(r) * np.maximum(np.abs(r) - level, 0.0)
+
+
+def _rest_residuals(b: Block, th_force: dict, train: np.ndarray) -> tuple[np.ndarray, float]:
+    """Net force beyond the static friction level on the rest rows, and the extra level F_s."""
+    cols = [c for c in b.columns if c not in b.static]
+    idx = [b.columns.index(c) for c in cols]
+    net = b.y - b.X[:, idx] @ np.array([th_force[c] for c in cols])
+    level = max(sum(th_force[c] for c in b.static), 0.0) + b.margin
+    if not b.search:
+        return _dead_zone(net, level), 0.0
+    costs = [float(np.mean(_dead_zone(net[train], level + f) ** 2)) if train.any() else 0.0 for f in STATIC_GRID]
+    f_s = float(STATIC_GRID[int(np.argmin(costs))])
+    return _dead_zone(net, level + f_s), f_s
+
+
 def fit_blocks(blocks: dict[str, Block], train_end: int) -> Fit:
-    """Fit each block on its rows with sample index < train_end (and in its fit mask)."""
+    """Fit each block on its rows with sample index < train_end (and in its fit mask); the
+    rest block takes the force block's parameters."""
     theta, res, noise = {}, {}, {}
     for name, b in blocks.items():
+        if name == "rest":
+            continue
         use = (b.rows < train_end) & b.fit_mask
         if use.sum() < 2 * b.X.shape[1]:
             raise ValueError(f"{name} equation: only {int(use.sum())} training rows")
@@ -372,6 +411,11 @@ def fit_blocks(blocks: dict[str, Block], train_end: int) -> Fit:
             noise[name] = np.zeros(len(b.y))
         else:
             noise[name] = np.sum(np.einsum("rck,c->rk", b.noise_load, th) ** 2, axis=1)
+    b = blocks["rest"]
+    res["rest"], f_s = _rest_residuals(b, theta["force"], b.rows < train_end)
+    noise["rest"] = np.zeros(len(b.y))
+    if b.search:
+        theta["force"]["F_s"] = f_s
     return Fit(blocks=blocks, theta=theta, residuals=res, noise_terms=noise)
 
 
