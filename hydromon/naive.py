@@ -175,6 +175,9 @@ class NaiveIdentifier:
 
     def update(self, sample) -> None:
         """Consume one sample (ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m])."""
+        sample = np.asarray(sample, dtype=np.float64)
+        if sample.shape != (N_CH,):
+            raise ValueError(f"sample must be (ug, x1, x3, x4, x5), got shape {sample.shape}")
         c, o = self.config, self.options
         n = self.n
         self.ring[n % RING] = sample

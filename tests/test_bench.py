@@ -113,3 +113,8 @@ def test_live_step_smoke():
     assert r["health_expected"] == 5 * 20 and r["health_received"] == r["health_expected"]
     assert r["p50_ms"] > 0 and r["p99_ms"] >= r["p50_ms"]
     assert r["cpu_monitor"] > 0
+
+
+def test_naive_rejects_bad_shape():
+    with pytest.raises(ValueError, match="shape"):
+        NaiveIdentifier().update([1.0, 2.0, 3.0])
