@@ -20,7 +20,9 @@
    sample size is not known well enough. The threshold is calibrated on simulated clean
    records (the largest clean-record score we saw in 40 seeds was about 0.10).
 3. Re-simulate the nominal and each extended model in free run from the measured ug
-   (``monitor.audit.freerun``) and measure the held-out error per channel (the gain).
+   (``monitor.audit.freerun``) and measure the held-out error per channel (the gain). For a
+   searched scalar (dead band, supply resistance) the simulated value is polished among
+   ``POLISH`` multiples by the free-run error on the training part only.
 
 The cause is the best-scoring candidate if it earns its place, else "none". When the
 runner-up scores within ``margin`` of the winner, or the winner is Stribeck friction whose
@@ -42,6 +44,8 @@ from .freerun import CHANNELS, channel_scores, free_run
 from .residuals import BLOCKS, Fit, build_blocks, fit_blocks, nominal_params, signals, Spec
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
+
+POLISH = (0.6, 0.8, 1.25)  # factors on a refined searched value tried in the free-run polish
 
 
 @dataclass(frozen=True)
@@ -233,18 +237,50 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         sim_nom = run.measured
         fr_nom = channel_scores(measured, sim_nom, test)
 
+    def fit_at(cand, value):
+        spec = cand.spec(value)
+        fit = fit_blocks(build_blocks(sig, cfg, spec, theta0), split)
+        if cand.refits:
+            # a flow law not linear in theta: solve theta_fit(theta0) = theta0 by secant steps on
+            # h(u) = ln theta_fit(e^u) - u (plain iteration converges slowly when the sag dominates)
+            def h(u):
+                f = fit_blocks(build_blocks(sig, cfg, spec, math.exp(u)), split)
+                return math.log(max(f.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u, f
+            u0 = math.log(theta0)
+            h0 = math.log(max(fit.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u0
+            u1 = u0 + h0
+            for _ in range(cand.refits):
+                h1, fit = h(u1)
+                if abs(h1) < 1e-3 or h1 == h0:
+                    break
+                u0, u1, h0 = u1, u1 - h1 * (u1 - u0) / (h1 - h0), h1
+                u1 = min(max(u1, u0 - 1.0), u0 + 1.0)
+        tr, _ = _mse_split(fit, split)
+        return _log_ratio(nom_tr, tr), value, fit
+
     results = []
     for cand in library:
         best = None
-        for value in cand.grid(sig):
+        grid = cand.grid(sig)
+        for value in grid:
             try:
-                fit = fit_blocks(build_blocks(sig, cfg, cand.spec(value), theta0), split)
+                trial = fit_at(cand, value)
             except ValueError:  # e.g. a spool stop so low that no valve row is free of it
                 continue
-            tr, _ = _mse_split(fit, split)
-            train_score = _log_ratio(nom_tr, tr)
-            if best is None or train_score > best[0]:
-                best = (train_score, value, fit)
+            if best is None or trial[0] > best[0]:
+                best = trial
+        if best is not None and cand.refine and len(grid) > 1:
+            # refine a scalar search geometrically between the grid's neighbours
+            step = (grid[1] / grid[0]) ** 0.5
+            for _ in range(3):
+                for value in (best[1] / step, best[1] * step):
+                    try:
+                        trial = fit_at(cand, value)
+                    except ValueError:
+                        continue
+                    if trial[0] > best[0]:
+                        best = trial
+                step **= 0.5
         if best is None:
             continue
         _, value, fit = best
@@ -256,7 +292,23 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         effect = cand.effects(value, fit.theta)
         gain, fr, sim = math.nan, {}, None
         if opt.free_run:
-            run = free_run(s, cfg, params, Effects(**effect), v0=float(sig.vl[0]))
+            # the simulated model: the searched value polished by free-run error on the
+            # TRAINING part (equation error biases it a little, and a free run can be sensitive)
+            models = [(params, effect)]
+            if cand.refine:
+                for f in POLISH:
+                    try:
+                        pf = fit_at(cand, value * f)[2]
+                    except ValueError:
+                        continue
+                    models.append((nominal_params(pf, cfg, cfg.h), cand.effects(value * f, pf.theta)))
+            best_run = None
+            for p_m, e_m in models:
+                run = free_run(s, cfg, p_m, Effects(**e_m), v0=float(sig.vl[0]))
+                err = _mean_nrmse(channel_scores(measured, run.measured, slice(0, split)))
+                if best_run is None or err < best_run[0]:
+                    best_run = (err, run, p_m, e_m)
+            _, run, params, effect = best_run
             sim = run.measured
             fr = channel_scores(measured, sim, test)
             gain = 1.0 - _mean_nrmse(fr) / _mean_nrmse(fr_nom)

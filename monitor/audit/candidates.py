@@ -48,10 +48,17 @@ class Candidate:
         Parameters it adds, the searched one included (the score's penalty counts them).
     caveat : str
         Why a weak win of this candidate should not be trusted ("" = none).
+    refine : bool
+        The grid is a geometric scalar grid: refine the best value between its neighbours.
+    refits : int
+        Re-fits with theta0 (the C_d W/sqrt(rho) inside a flow law not linear in it) set to
+        the previous fit's value.
     """
 
     name = ""
     caveat = ""
+    refine = False
+    refits = 0
     equation = ""
     regressors: tuple = ()
     n_extra = 1
@@ -137,6 +144,7 @@ class ValveDeadBand(Candidate):
     equation = "q_i = theta x_e z_i(x_e),  x_e = sign(x5) max(|x5| - d, 0)"
     regressors = ("x_e z1", "x_e z2 (replace x5 z1, x5 z2)")
     n_extra = 1
+    refine = True
 
     def grid(self, sig):
         scale = float(np.quantile(np.abs(sig.x5l), 0.99))
@@ -205,6 +213,8 @@ class SupplyPressureSag(Candidate):
     equation = "q_supply = theta x5 sqrt(2 (p_s - R q_supply - p_i))"
     regressors = ("sagged supply-side flow per unit theta (replaces x5 z1 for x5>0, x5 z2 for x5<0)",)
     n_extra = 1
+    refits = 6
+    refine = True
 
     def grid(self, sig):
         return _geom(1e8, 2e10, 12)
