@@ -58,7 +58,7 @@ import orjson
 
 __all__ = [
     "BenchResult", "paper_var_samples", "bench_core_single", "bench_core_batch", "bench_replay_direct",
-    "bench_naive", "bench_memory", "bench_transport", "machine_info", "run_bench", "to_json",
+    "bench_naive", "bench_identify_single", "bench_memory", "bench_transport", "machine_info", "run_bench", "to_json",
     "append_history",
 ]
 
@@ -110,6 +110,28 @@ def bench_core_single(samples: np.ndarray, batch: int, repeats: int = 3) -> floa
         fleet.add_rig("rig")
         for r, s in zip(rigs, rows):
             fleet.update(r, s)
+
+    return _median_rate(n, one_pass, repeats)
+
+
+def bench_identify_single(samples: np.ndarray, repeats: int = 3) -> float:
+    """samples/s of the compiled identification kernel alone (``monitor.identify.fleet_step``),
+    one call per sample for one rig: the like-for-like twin of :func:`bench_naive` (no read-out,
+    no grading, no ``Fleet.update`` argument checks)."""
+    from monitor.identify import IdentOptions, Kernels, fleet_step, new_state, rig_constants
+    from plant_sim.params import RigConfig
+
+    k = Kernels(IdentOptions(), RigConfig().h)
+    consts = rig_constants(RigConfig())[None, :]
+    n = len(samples)
+    samples = np.ascontiguousarray(samples, dtype=np.float64)
+    rows = [samples[i:i + 1] for i in range(n)]
+    rig = np.zeros(1, np.int64)
+
+    def one_pass():
+        states = new_state(k.hyper)[None, :]
+        for s in rows:
+            fleet_step(states, consts, k.hyper, k.m_f, k.m_c, rig, s)
 
     return _median_rate(n, one_pass, repeats)
 
@@ -424,6 +446,12 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
     naive = bench_naive(naive_samples, repeats=1)
     details["baseline_naive"] = {"samples": len(naive_samples),
                                  "what": "identification per sample in numpy (no read-out, no grading)"}
+
+    _log("identify only (batch 1)")
+    ident = bench_identify_single(samples, repeats=1 if q else 3)
+    details["identify_single"] = {"samples_per_s": ident, "speedup_vs_naive": ident / naive,
+                                  "what": "monitor.identify.fleet_step per sample: the naive baseline's "
+                                          "compiled twin"}
 
     n_rigs, ticks = (50, 200) if q else (1000, 1000)
     _log(f"core_batch ({n_rigs} rigs x {ticks} ticks)")

@@ -56,7 +56,8 @@ def print_table(res, stream=None) -> None:
               f"in-memory MCAP, {rd.get('rigs')} rigs, via {rd.get('via')}; "
               f"pydantic+Fleet.update: {_fmt(rd.get('pydantic'))}/s")
     t.add_row("baseline_naive", _fmt(res.baseline_naive), "samples/s",
-              f"numpy per sample; core_single is {res.speedup_vs_naive:.1f}x")
+              f"numpy per sample; core_single is {res.speedup_vs_naive:.1f}x, compiled "
+              f"identification alone {d.get('identify_single', {}).get('speedup_vs_naive', float('nan')):.1f}x")
     m = res.memory_per_rig
     t.add_row("memory_per_rig", _fmt(m["state_bytes"]), "bytes",
               f"state arrays; RSS growth {_fmt(m['rss_bytes'])} B/rig over {m['rigs']} rigs")
