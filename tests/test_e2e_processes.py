@@ -111,6 +111,21 @@ def _messages_on_disk(path) -> int:
     return recover(io.BytesIO(path.read_bytes()), io.BytesIO()).messages
 
 
+def _warm_kernels() -> None:
+    """Run the plant and monitor kernels once here, so a stale numba cache is rebuilt by this
+    process before the node processes start (they then load it instead of compiling)."""
+    from hydromon.fleetfile import FleetSpec, RigSpec
+    from hydromon.monitornode import MonitorCore
+    from hydromon.simnode import iter_blocks
+
+    fleet = FleetSpec(rigs=[RigSpec(id="warm", table4=1)]).build()
+    msgs = [("hydro/rig/warm/sample", orjson.dumps(dict(zip(("seq", "t", "ug", "x1", "x3", "x4", "x5"),
+                                                             (s, t, *row)))))
+            for blk in iter_blocks(fleet, 100) for s, t, row in zip(blk.seq.tolist(), blk.t.tolist(),
+                                                                    blk.samples[0].tolist())]
+    assert len(MonitorCore().process(msgs)) == 10
+
+
 def _by_key(msgs):
     out: dict[str, list[bytes]] = {}
     for k, p in msgs:
@@ -121,6 +136,7 @@ def _by_key(msgs):
 @pytest.mark.network
 @pytest.mark.timeout(240)
 def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
+    _warm_kernels()
     spec = default_fleet()
     truth = {r.id: true_grade(r) for r in spec.rigs}
     ep = free_tcp_endpoint()
