@@ -47,25 +47,80 @@ def _sigma2_kappa(st, streams, n_par):
 
 
 @njit(cache=True)
+def _inv_small(A: np.ndarray) -> np.ndarray:
+    """Inverse of a small square matrix by Gauss-Jordan with partial pivoting (NaN if singular)."""
+    n = A.shape[0]
+    a = np.empty((n, 2 * n))
+    for i in range(n):
+        for j in range(n):
+            a[i, j] = A[i, j]
+            a[i, n + j] = 1.0 if i == j else 0.0
+    for c in range(n):
+        piv = c
+        for r in range(c + 1, n):
+            if abs(a[r, c]) > abs(a[piv, c]):
+                piv = r
+        if a[piv, c] == 0.0:
+            a[:, n:] = np.nan
+            break
+        if piv != c:
+            for j in range(2 * n):
+                a[c, j], a[piv, j] = a[piv, j], a[c, j]
+        f = 1.0 / a[c, c]
+        for j in range(2 * n):
+            a[c, j] *= f
+        for r in range(n):
+            if r != c and a[r, c] != 0.0:
+                g = a[r, c]
+                for j in range(2 * n):
+                    a[r, j] -= g * a[c, j]
+    return a[:, n:].copy()
+
+
+@njit(cache=True)
 def _compensate(theta, cov, P, S):
     """theta_bc = (I - P S)^-1 theta and its covariance; unchanged if the correction is not small."""
     n = theta.shape[0]
-    PS = P @ S
+    M = np.empty((n, n))
     norm = 0.0
     for i in range(n):
         for j in range(n):
-            norm += PS[i, j] * PS[i, j]
+            acc = 0.0
+            for k in range(n):
+                acc += P[i, k] * S[k, j]
+            norm += acc * acc
+            M[i, j] = (1.0 if i == j else 0.0) - acc
     if not (math.sqrt(norm) < 0.5):
         return theta, cov
-    M = np.eye(n) - PS
-    Mi = np.linalg.inv(M)
-    return Mi @ theta, Mi @ cov @ Mi.T
+    Mi = _inv_small(M)
+    th = np.zeros(n)
+    T = np.zeros((n, n))
+    C = np.zeros((n, n))
+    for i in range(n):
+        for k in range(n):
+            th[i] += Mi[i, k] * theta[k]
+            for j in range(n):
+                T[i, j] += Mi[i, k] * cov[k, j]
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += T[i, k] * Mi[j, k]
+            C[i, j] = acc
+    return th, C
 
 
 @njit(cache=True)
 def valve_physical(th: np.ndarray, h: float) -> np.ndarray:
     """[2 zeta omega, omega^2, K_sv omega^2] from ARX [a1, a2, b0, b1, b2] (x5 scaled by X5_NOM)."""
-    out = np.full(3, np.nan)
+    out = np.empty(3)
+    _valve_physical(th, h, out)
+    return out
+
+
+@njit(cache=True)
+def _valve_physical(th: np.ndarray, h: float, out: np.ndarray) -> np.ndarray:
+    out[:] = np.nan
     a1, a2 = th[0], th[1]
     den = 1.0 + a1 + a2
     disc = a1 * a1 - 4.0 * a2
@@ -148,26 +203,31 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
     if st[O_ROWS + 2] > 6:
         th = st[O_TH_V:O_TH_V + 5].copy()
         P = st[O_P_V:O_P_V + 25].reshape((5, 5))
-        Ps = 0.5 * (P + P.T)
         phys = valve_physical(th, hyper[H_H])
         s2, kap = _sigma2_kappa(st, (3,), 5)
         for i in range(3):
             params[8 + i] = phys[i]
         if math.isfinite(s2) and math.isfinite(phys[0]):
             J = np.zeros((3, 5))
+            fp = np.empty(3)
+            fm = np.empty(3)
             for j in range(5):
                 d = 1e-6 * max(abs(th[j]), 1e-3)
-                tp = th.copy()
-                tm = th.copy()
-                tp[j] += d
-                tm[j] -= d
-                fp = valve_physical(tp, hyper[H_H])
-                fm = valve_physical(tm, hyper[H_H])
+                t0 = th[j]
+                th[j] = t0 + d
+                _valve_physical(th, hyper[H_H], fp)
+                th[j] = t0 - d
+                _valve_physical(th, hyper[H_H], fm)
+                th[j] = t0
                 for i in range(3):
                     J[i, j] = (fp[i] - fm[i]) / (2.0 * d)
-            C = J @ (Ps * (s2 * kap)) @ J.T
+            f = s2 * kap
             for i in range(3):
-                se[8 + i] = math.sqrt(max(C[i, i], 0.0))
+                acc = 0.0
+                for a in range(5):
+                    for b in range(5):
+                        acc += J[i, a] * 0.5 * (P[a, b] + P[b, a]) * J[i, b]
+                se[8 + i] = math.sqrt(max(acc * f, 0.0))
 
 
 @njit(cache=True)

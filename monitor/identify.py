@@ -55,7 +55,7 @@ from .layout import (
     O_RES_W, O_RING, O_SLOW, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
     RING, SG_HALF, STATE_SIZE,
 )
-from .rls import riv_step, rls_step
+from .rls import riv_update, rls_update
 from .svf import noise_gram, svf_init, svf_matrices, svf_step
 
 N_PARAMS = 11
@@ -183,6 +183,14 @@ def _ring(st, n, lag, ch):
 
 
 @njit(cache=True)
+def _dot(a, b):
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@njit(cache=True)
 def _residual_stats(st, stream, e, lam):
     w = O_RES_W + stream
     st[w] = lam * st[w] + 1.0
@@ -252,10 +260,16 @@ def _valve_row(st, rc, hyper, n, phi, z):
     return y, step
 
 
+WORK_SIZE = 64
+
+
 @njit(cache=True)
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
-                  ug: float, x1: float, x3: float, x4: float, x5: float) -> None:
-    """Consume one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place."""
+                  ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
+    """Consume one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place.
+
+    ``work`` is scratch space of WORK_SIZE floats (so the per-sample path allocates nothing).
+    """
     n = int(st[O_N])
     base = O_RING + (n % RING) * N_CH
     st[base], st[base + 1], st[base + 2], st[base + 3], st[base + 4] = ug, x1, x3, x4, x5
@@ -264,17 +278,18 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     pmax = hyper[H_PMAX]
     _noise_update(st, n, hyper)
 
-    phi5 = np.empty(5)
-    z5 = np.empty(5)
+    phi5 = work[0:5]
+    z5 = work[5:10]
+    w = work[10:20]
     if n >= 2:
         y, step = _valve_row(st, rc, hyper, n, phi5, z5)
         if not step:
             th = st[O_TH_V:O_TH_V + 5]
             P = st[O_P_V:O_P_V + 25].reshape((5, 5))
-            e = riv_step(th, P, phi5, z5, y, lam, pmax)
+            e = riv_update(th, P, phi5, z5, y, lam, pmax, w)
             if math.isfinite(e):
                 st[O_ROWS + 2] += 1.0
-                _residual_stats(st, 3, y - phi5 @ th, lam)
+                _residual_stats(st, 3, y - _dot(phi5, th), lam)
 
     if n < 2 * SG_HALF:
         return
@@ -305,8 +320,8 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
             svf_init(m_f, st[O_SVF_F + 3 * i:O_SVF_F + 3 * i + 3], inputs_f[i])
         for i in range(9):
             svf_init(m_c, st[O_SVF_C + 3 * i:O_SVF_C + 3 * i + 3], inputs_c[i])
-    yf = np.empty((3, 3))
-    yc = np.empty((9, 3))
+    yf = work[20:29].reshape((3, 3))
+    yc = work[29:56].reshape((9, 3))
     for i in range(3):
         svf_step(m_f, st[O_SVF_F + 3 * i:O_SVF_F + 3 * i + 3], inputs_f[i], yf[i])
     for i in range(9):
@@ -315,7 +330,7 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
         return
 
     # force balance row, unless a reversal or a stick is inside the filter's memory
-    phi = np.empty(4)
+    phi = work[56:60]
     force_ok = st[O_SLOW] >= hyper[H_GUARD]
     phi[0] = yf[0, 2] * THETA_NOM_F[0] / Y_NOM_F
     phi[1] = yf[0, 1] * THETA_NOM_F[1] / Y_NOM_F
@@ -324,11 +339,11 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     yv = yf[1, 0] / Y_NOM_F
     th = st[O_TH_F:O_TH_F + 4]
     P = st[O_P_F:O_P_F + 16].reshape((4, 4))
-    e = rls_step(th, P, phi, yv, lam, pmax) if force_ok else np.nan
+    e = rls_update(th, P, phi, yv, lam, pmax, w) if force_ok else np.nan
     if math.isfinite(e):
         st[O_ROWS] += 1.0
         st[O_BC] = lam * st[O_BC] + 1.0
-        _residual_stats(st, 0, yv - phi @ th, lam)
+        _residual_stats(st, 0, yv - _dot(phi, th), lam)
 
     # chamber rows (two per sample, each forgetting by sqrt(lam))
     lam2 = math.sqrt(lam)
@@ -343,30 +358,31 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     phi[2] = dp * s1[2]
     phi[3] = yc[1, 0] * s1[3]
     yv = -a1 * yc[0, 1] / Y_NOM_C
-    e = rls_step(th, P, phi, yv, lam2, pmax)
+    e = rls_update(th, P, phi, yv, lam2, pmax, w)
     ok = math.isfinite(e)
     if ok:
         st[O_BC + 1] = lam2 * st[O_BC + 1] + v1 * v1
         st[O_BC + 2] = lam2 * st[O_BC + 2]
-        _residual_stats(st, 1, yv - phi @ th, lam2)
+        _residual_stats(st, 1, yv - _dot(phi, th), lam2)
     phi[0] = (rc[C_V20] * yc[2, 1] - a2 * (yc[4, 1] - yc[6, 0])) * s1[0]
     phi[1] = yc[8, 0] * s1[1]
     phi[2] = -dp * s1[2]
     phi[3] = yc[2, 0] * s1[3]
     yv = a2 * yc[0, 1] / Y_NOM_C
-    e = rls_step(th, P, phi, yv, lam2, pmax)
+    e = rls_update(th, P, phi, yv, lam2, pmax, w)
     if ok and math.isfinite(e):
         st[O_ROWS + 1] += 1.0
         st[O_BC + 1] = lam2 * st[O_BC + 1]
         st[O_BC + 2] = lam2 * st[O_BC + 2] + v2 * v2
-        _residual_stats(st, 2, yv - phi @ th, lam2)
+        _residual_stats(st, 2, yv - _dot(phi, th), lam2)
 
 
 @njit(cache=True)
 def fleet_step(states: np.ndarray, consts: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
                rig: np.ndarray, samples: np.ndarray) -> None:
     """Consume a batch of samples in arrival order: sample i (ug, x1, x3, x4, x5) belongs to rig[i]."""
+    work = np.empty(WORK_SIZE)
     for i in range(rig.shape[0]):
         r = rig[i]
         identify_step(states[r], consts[r], hyper, m_f, m_c,
-                      samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4])
+                      samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4], work)

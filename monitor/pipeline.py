@@ -19,7 +19,7 @@ from plant_sim.params import RigConfig
 
 from .estimates import estimates
 from .grading import Ranges, grade_kernel
-from .identify import IdentOptions, Kernels, fleet_step, new_state, reset_signals, rig_constants
+from .identify import WORK_SIZE, IdentOptions, Kernels, identify_step, new_state, reset_signals, rig_constants
 from .layout import O_ROWS, STATE_SIZE
 
 N_P = len(PARAM_NAMES)
@@ -86,14 +86,14 @@ def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_
     caller to len(samples) // eval_every + number of rigs).
     """
     n_ev = 0
-    one_rig = np.zeros(1, dtype=np.int64)
     p = np.empty((1, ev_params.shape[1]))
     s = np.empty((1, ev_params.shape[1]))
     conv = np.zeros(1, dtype=np.bool_)
+    work = np.empty(WORK_SIZE)
     for i in range(rig.shape[0]):
         r = rig[i]
-        one_rig[0] = r
-        fleet_step(states, consts, hyper, m_f, m_c, rig[i:i + 1], samples[i:i + 1])
+        identify_step(states[r], consts[r], hyper, m_f, m_c, samples[i, 0], samples[i, 1], samples[i, 2],
+                      samples[i, 3], samples[i, 4], work)
         counts[r] += 1
         if counts[r] % eval_every != 0:
             continue

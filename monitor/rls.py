@@ -48,7 +48,8 @@ def _forget(P: np.ndarray, lam: float, p_max: float) -> None:
 
 
 @njit(cache=True)
-def rls_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float) -> float:
+def rls_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float,
+               w: np.ndarray) -> float:
     """One RLS update (in place). Returns the a-priori residual y - phi' theta (NaN if refused).
 
     Parameters
@@ -64,18 +65,26 @@ def rls_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: f
         Forgetting factor in (0, 1].
     p_max : float
         Trace bound beyond which forgetting pauses.
+    w : array (>= n,)
+        Scratch space (the hot path allocates nothing).
     """
     if not _finite_row(phi, y):
         return np.nan
     n = theta.shape[0]
-    Pphi = P @ phi
-    denom = lam + phi @ Pphi
-    e = y - phi @ theta
+    denom = lam
+    e = y
     for i in range(n):
-        k = Pphi[i] / denom
+        acc = 0.0
+        for j in range(n):
+            acc += P[i, j] * phi[j]
+        w[i] = acc
+        denom += phi[i] * acc
+        e -= phi[i] * theta[i]
+    for i in range(n):
+        k = w[i] / denom
         theta[i] += k * e
         for j in range(n):
-            P[i, j] -= k * Pphi[j]
+            P[i, j] -= k * w[j]
     for i in range(n):
         for j in range(i + 1, n):
             s = 0.5 * (P[i, j] + P[j, i])
@@ -86,25 +95,47 @@ def rls_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: f
 
 
 @njit(cache=True)
-def riv_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray, y: float, lam: float,
-             p_max: float) -> float:
-    """One recursive-IV update with instrument z (in place). Returns the a-priori residual."""
+def rls_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float) -> float:
+    """``rls_update`` with its own scratch space (for callers off the hot path)."""
+    return rls_update(theta, P, phi, y, lam, p_max, np.empty(theta.shape[0]))
+
+
+@njit(cache=True)
+def riv_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray, y: float, lam: float,
+               p_max: float, w: np.ndarray) -> float:
+    """One recursive-IV update with instrument z (in place); scratch w (>= 2 n). Returns the residual."""
     if not (_finite_row(phi, y) and _finite_row(z, 0.0)):
         return np.nan
     n = theta.shape[0]
-    Pz = P @ z
-    phiP = phi @ P
-    denom = lam + phi @ Pz
+    denom = lam
+    e = y
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        for j in range(n):
+            a += P[i, j] * z[j]
+            b += phi[j] * P[j, i]
+        w[i] = a  # P z
+        w[n + i] = b  # phi' P
+        e -= phi[i] * theta[i]
+    for i in range(n):
+        denom += phi[i] * w[i]
     if not (abs(denom) > 1e-300):
         return np.nan
-    e = y - phi @ theta
     for i in range(n):
-        k = Pz[i] / denom
+        k = w[i] / denom
         theta[i] += k * e
         for j in range(n):
-            P[i, j] -= k * phiP[j]
+            P[i, j] -= k * w[n + j]
     _forget(P, lam, p_max)
     return e
+
+
+@njit(cache=True)
+def riv_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray, y: float, lam: float,
+             p_max: float) -> float:
+    """``riv_update`` with its own scratch space."""
+    return riv_update(theta, P, phi, z, y, lam, p_max, np.empty(2 * theta.shape[0]))
 
 
 class RLS:

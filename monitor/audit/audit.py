@@ -97,7 +97,7 @@ class CandidateResult:
         The same on the training part.
     gain : float
         Free-run held-out error reduction, 1 - mean NRMSE extended / mean NRMSE nominal (nan
-        without free run).
+        without free run, -inf when the extended model's free run diverged).
     freerun : dict
         Held-out per-channel {"nrmse", "fit"} of the extended model's free run.
     params : dict
@@ -224,7 +224,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     s = np.asarray(samples, dtype=float)
     sig = signals(s, cfg.h)
     split = int(opt.train_fraction * sig.n)
-    nominal = fit_blocks(build_blocks(sig, cfg, Spec()), split)
+    cache: dict = {}  # valve fits by what they depend on
+    nominal = fit_blocks(build_blocks(sig, cfg, Spec()), split, cfg.h, cache)
     p_nom = nominal_params(nominal, cfg, cfg.h)
     theta0 = max(p_nom["CdW_sqrt_rho"], 1e-6)
     nom_tr, nom_te = _mse_split(nominal, split)
@@ -239,12 +240,12 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
 
     def fit_at(cand, value):
         spec = cand.spec(value)
-        fit = fit_blocks(build_blocks(sig, cfg, spec, theta0), split)
+        fit = fit_blocks(build_blocks(sig, cfg, spec, theta0), split, cfg.h, cache)
         if cand.refits:
             # a flow law not linear in theta: solve theta_fit(theta0) = theta0 by secant steps on
             # h(u) = ln theta_fit(e^u) - u (plain iteration converges slowly when the sag dominates)
             def h(u):
-                f = fit_blocks(build_blocks(sig, cfg, spec, math.exp(u)), split)
+                f = fit_blocks(build_blocks(sig, cfg, spec, math.exp(u)), split, cfg.h, cache)
                 return math.log(max(f.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u, f
             u0 = math.log(theta0)
             h0 = math.log(max(fit.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u0
@@ -311,7 +312,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             _, run, params, effect = best_run
             sim = run.measured
             fr = channel_scores(measured, sim, test)
-            gain = 1.0 - _mean_nrmse(fr) / _mean_nrmse(fr_nom)
+            gain = -math.inf if run.diverged else 1.0 - _mean_nrmse(fr) / _mean_nrmse(fr_nom)
         results.append(CandidateResult(
             name=cand.name, equation=cand.equation, value=value, score=float(score),
             residual_ratio={g: te[g] / nom_te[g] if nom_te[g] > 0 else 1.0 for g in BLOCKS},

@@ -64,7 +64,8 @@ class FreeRun:
 
     ``measured`` is what the sensors would report (x1 [m], x3 [Pa], x4 [Pa], x5 [m]), with
     the recording delay of the effects applied to x1; ``clamped`` lists parameters that
-    were outside their physical domain.
+    were outside their physical domain; ``diverged`` is True when the simulation left every
+    physical range (then ``measured`` is clipped to it and means nothing).
     """
 
     measured: np.ndarray
@@ -103,9 +104,11 @@ def free_run(samples: np.ndarray, config: RigConfig, params: dict, effects: Effe
     d = eff.sensor_delay
     if d:
         out[:, 0] = np.concatenate([np.full(d, st[0, 0]), st[:-d, 0]])[:n]
-    bad = not np.all(np.isfinite(out))
+    # diverged: non-finite, or beyond any physical range (1 m stroke, 1 GPa, 1 cm spool)
+    limit = np.array([1.0, 1e9, 1e9, 1e-2])
+    bad = not (np.all(np.isfinite(out)) and np.all(np.abs(out) <= limit))
     if bad:
-        out = np.where(np.isfinite(out), out, 0.0)
+        out = np.clip(np.where(np.isfinite(out), out, 0.0), -limit, limit)
     return FreeRun(measured=out, clamped=tuple(clamped), diverged=bad)
 
 

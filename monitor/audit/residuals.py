@@ -14,9 +14,12 @@ The nominal model is the paper's, written as three linear-in-parameter blocks (S
 
   with V1 = V10 + A1 x1, V2 = V20 - A2 x1, theta = C_d W / sqrt(rho) and z1, z2 the orifice
   pressure factors of ``plant_sim.model.orifice_z``.
-* **valve** (eqs 39-42): the exact discrete model of the 2nd-order valve on raw samples,
-  ``x5(k) = -a1 x5(k-1) - a2 x5(k-2) + b0 du(k) + b1 du(k-1) + b2 du(k-2)``,
-  ``du = K_p (ug - K_f x1_fb)``; the poles map to omega^2 and 2 zeta omega (z = exp(s h)).
+* **valve** (eqs 39-42): output error of the 2nd-order valve driven by
+  ``du = K_p (ug - K_f x1_fb)``: x5 is simulated from du alone through the exact discrete
+  model for piecewise-linear input (first-order hold) of ``K_sv omega^2 / (s^2 + 2 zeta omega s
+  + omega^2)``, omega and zeta searched (grid, then Nelder-Mead), K_sv by least squares. Output
+  error is not biased by the x5 sensor noise (an equation-error ARX is, and degenerates when
+  a slow command hardly excites the valve's dynamics).
 
 A :class:`Spec` says how the blocks are built (x1 re-aligned, a flow-law transform, a
 spool-stop gate, extra columns); the candidate extensions of ``monitor.audit.candidates``
@@ -31,7 +34,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy.signal import savgol_filter
+from scipy.optimize import minimize
+from scipy.signal import cont2discrete, lfilter, savgol_filter
 
 from plant_sim.params import RigConfig
 
@@ -46,6 +50,8 @@ FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction a
 SG_LIGHT = 11  # [samples] window of the light smoothing of nonlinear terms' ingredients
 SG_ORDER = 3
 MARGIN = 25  # [samples] rows dropped at both ends (filter edges and x1 re-alignment)
+VALVE_OMEGA = np.geomspace(20.0, 600.0, 18)  # [rad/s] valve natural frequencies searched
+VALVE_ZETA = np.array([0.15, 0.3, 0.5, 0.7, 1.0, 1.5])  # [-] damping ratios searched
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
 
@@ -222,10 +228,8 @@ class Block:
     """Rest block: noise allowance added to the static friction level [N]."""
     search: bool = False
     """Rest block: search an extra static level F_s on ``STATIC_GRID``."""
-    rank_ls: bool = False
-    """Rank on the plain least-squares residual (True) rather than the bias-compensated one
-    less its noise share: for the valve, whose compensated fit turns degenerate (poles
-    near 1) when the model is wrong, which the noise correction would then reward."""
+    key: tuple | None = None
+    """Valve block: what its fit depends on (for the fit cache); X holds du (N, 1) [V]."""
 
 
 def _valid_rows(sig: Signals) -> np.ndarray:
@@ -308,13 +312,10 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     cnl = np.stack(loads, axis=1)[:, :, None]
     chamber = Block("chamber", cy, cX, tuple(ccols), crow, np.ones(len(cy), bool), noise_load=cnl)
 
-    # valve ARX on raw samples; du from x1 re-aligned to what the controller saw
+    # valve output error on raw samples; du from x1 re-aligned to what the controller saw
     x1fb = _shift(sig.x1, spec.du_shift)
     du = cfg.K_p * (sig.ug - cfg.K_f * x1fb)
-    xr = sig.x5
     k = rows
-    vy = xr[k]
-    vX = np.column_stack([-xr[k - 1], -xr[k - 2], du[k], du[k - 1], du[k - 2]])
     ug = sig.ug
     smooth = np.abs(ug[k] - 2.0 * ug[k - 1] + ug[k - 2]) <= STEP_TOL
     clip = math.inf
@@ -322,11 +323,8 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     if spec.valve_gate is not None:
         clip, free = spec.valve_gate(sig)
         fit_mask = (free[k] & free[k - 1] & free[k - 2])[smooth]
-    vnl = np.zeros((int(smooth.sum()), 5, 2))
-    vnl[:, 0, 0] = sig.sigma[3]  # -x5(k-1) and -x5(k-2) carry independent sensor noise
-    vnl[:, 1, 1] = sig.sigma[3]
-    valve = Block("valve", vy[smooth], vX[smooth], ("a1", "a2", "b0", "b1", "b2"), k[smooth], fit_mask,
-                  clip, noise_load=vnl, rank_ls=True)
+    valve = Block("valve", sig.x5[k][smooth], du[:, None], ("omega_sv2", "two_zeta_omega", "K_sv"),
+                  k[smooth], fit_mask, clip, key=("valve", spec.du_shift, clip))
     return {"force": force, "rest": rest, "chamber": chamber, "valve": valve}
 
 
@@ -389,25 +387,62 @@ def _rest_residuals(b: Block, th_force: dict, train: np.ndarray) -> tuple[np.nda
     return _dead_zone(net, level + f_s), f_s
 
 
-def fit_blocks(blocks: dict[str, Block], train_end: int) -> Fit:
+def valve_response(omega: float, zeta: float, h: float, du: np.ndarray) -> np.ndarray:
+    """Unit-gain valve response [m/V * V] to du sampled with period h, first-order hold."""
+    num, den = [omega * omega], [1.0, 2.0 * zeta * omega, omega * omega]
+    b, a, _ = cont2discrete((num, den), h, method="foh")
+    return lfilter(np.ravel(b), np.ravel(a), du)
+
+
+def _fit_valve(b: Block, h: float, train: np.ndarray) -> tuple[dict, np.ndarray]:
+    du = b.X[:, 0]
+    use = train & b.fit_mask
+    y = b.y
+
+    def cost(omega, zeta):
+        omega = min(max(omega, 0.5 * VALVE_OMEGA[0]), 2.0 * VALVE_OMEGA[-1])
+        zeta = min(max(zeta, 0.5 * VALVE_ZETA[0]), 2.0 * VALVE_ZETA[-1])
+        g = valve_response(omega, zeta, h, du)[b.rows]
+        gg = float(np.dot(g[use], g[use]))
+        k = float(np.dot(g[use], y[use])) / gg if gg > 0 else 0.0
+        pred = k * g
+        if math.isfinite(b.clip):
+            pred = np.clip(pred, -b.clip, b.clip)
+        r = y - pred
+        return float(np.mean(r[use] ** 2)), k, r
+
+    best = None
+    for omega in VALVE_OMEGA:
+        for zeta in VALVE_ZETA:
+            c = cost(omega, zeta)[0]
+            if best is None or c < best[0]:
+                best = (c, omega, zeta)
+    z0 = np.log([best[1], best[2]])
+    opt = minimize(lambda z: cost(*np.exp(z))[0], z0, method="Nelder-Mead",
+                   options={"xatol": 1e-3, "fatol": 1e-9 * best[0], "maxfev": 80,
+                            "initial_simplex": np.vstack([z0, z0 + [0.15, 0], z0 + [0, 0.15]])})
+    omega, zeta = (float(v) for v in np.exp(opt.x))
+    omega = min(max(omega, 0.5 * VALVE_OMEGA[0]), 2.0 * VALVE_OMEGA[-1])
+    zeta = min(max(zeta, 0.5 * VALVE_ZETA[0]), 2.0 * VALVE_ZETA[-1])
+    _, k, r = cost(omega, zeta)
+    return {"omega_sv2": omega * omega, "two_zeta_omega": 2.0 * zeta * omega, "K_sv": k}, r
+
+
+def fit_blocks(blocks: dict[str, Block], train_end: int, h: float, cache: dict | None = None) -> Fit:
     """Fit each block on its rows with sample index < train_end (and in its fit mask); the
-    rest block takes the force block's parameters."""
+    rest block takes the force block's parameters; the valve block is fitted by output error
+    (memoised in ``cache`` by what it depends on)."""
     theta, res, noise = {}, {}, {}
     for name, b in blocks.items():
-        if name == "rest":
+        if name in ("rest", "valve"):
             continue
         use = (b.rows < train_end) & b.fit_mask
         if use.sum() < 2 * b.X.shape[1]:
             raise ValueError(f"{name} equation: only {int(use.sum())} training rows")
         th = _lstsq(b.X[use], b.y[use], None if b.noise_load is None else b.noise_load[use])
         theta[name] = dict(zip(b.columns, th.tolist()))
-        if b.rank_ls:
-            th = _lstsq(b.X[use], b.y[use])
-        pred = b.X @ th
-        if math.isfinite(b.clip):
-            pred = np.clip(pred, -b.clip, b.clip)
-        res[name] = b.y - pred
-        if b.noise_load is None or b.rank_ls:
+        res[name] = b.y - b.X @ th
+        if b.noise_load is None:
             noise[name] = np.zeros(len(b.y))
         else:
             noise[name] = np.sum(np.einsum("rck,c->rk", b.noise_load, th) ** 2, axis=1)
@@ -416,20 +451,24 @@ def fit_blocks(blocks: dict[str, Block], train_end: int) -> Fit:
     noise["rest"] = np.zeros(len(b.y))
     if b.search:
         theta["force"]["F_s"] = f_s
+    b = blocks["valve"]
+    if (b.rows < train_end).sum() < 20 or ((b.rows < train_end) & b.fit_mask).sum() < 20:
+        raise ValueError(f"valve equation: only {int(((b.rows < train_end) & b.fit_mask).sum())} training rows")
+    key = b.key + (train_end,) if b.key is not None else None
+    if cache is not None and key in cache:
+        theta["valve"], res["valve"] = cache[key]
+    else:
+        theta["valve"], res["valve"] = _fit_valve(b, h, b.rows < train_end)
+        if cache is not None:
+            cache[key] = (theta["valve"], res["valve"])
+    noise["valve"] = np.zeros(len(b.y))
     return Fit(blocks=blocks, theta=theta, residuals=res, noise_terms=noise)
 
 
 def nominal_params(fit: Fit, cfg: RigConfig, h: float) -> dict[str, float]:
     """The 11 identified parameters by bus name (``hydromon.contract.PARAM_NAMES``), SI."""
     f, c, v = fit.theta["force"], fit.theta["chamber"], fit.theta["valve"]
-    out = {"m": f["m"], "B_fv": f["B_fv"], "f_c": f["f_c"], "K_t": f["K_t"],
-           "inv_beta_e": c["inv_beta_e"], "CdW_sqrt_rho": c["CdW_sqrt_rho"], "C_ip": c["C_ip"],
-           "C_ep": c["C_ep"]}
-    a1, a2 = v["a1"], v["a2"]
-    roots = np.roots([1.0, a1, a2]).astype(complex)
-    s = np.log(roots) / h
-    w2 = float(np.real(s[0] * s[1]))
-    tzw = float(-np.real(s[0] + s[1]))
-    dc = (v["b0"] + v["b1"] + v["b2"]) / (1.0 + a1 + a2)
-    out.update(two_zeta_omega=tzw, omega_sv2=w2, K_sv_omega_sv2=dc * w2)
-    return out
+    return {"m": f["m"], "B_fv": f["B_fv"], "f_c": f["f_c"], "K_t": f["K_t"],
+            "inv_beta_e": c["inv_beta_e"], "CdW_sqrt_rho": c["CdW_sqrt_rho"], "C_ip": c["C_ip"],
+            "C_ep": c["C_ep"], "two_zeta_omega": v["two_zeta_omega"], "omega_sv2": v["omega_sv2"],
+            "K_sv_omega_sv2": v["K_sv"] * v["omega_sv2"]}
