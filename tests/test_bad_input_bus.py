@@ -200,7 +200,7 @@ def parse_summary(text: str) -> dict:
 
 
 @pytest.mark.network
-@pytest.mark.timeout(180)
+@pytest.mark.timeout(300)
 def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(tmp_path):
     good = good_messages()
     clean = _by_rig(MonitorCore(NS).process(good))

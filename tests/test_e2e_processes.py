@@ -134,7 +134,7 @@ def _by_key(msgs):
 
 
 @pytest.mark.network
-@pytest.mark.timeout(240)
+@pytest.mark.timeout(400)
 def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
     _warm_kernels()
     spec = default_fleet()

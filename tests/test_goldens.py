@@ -135,7 +135,7 @@ def test_cli_direct_replay_prints_the_health_jsonl(tmp_path, capsys):
 
 
 @pytest.mark.network
-@pytest.mark.timeout(120)
+@pytest.mark.timeout(300)
 def test_regenerating_a_golden_gives_the_committed_health(tmp_path):
     """``--update`` is deterministic: a fresh live recording of the same rigs holds the same
     verdicts, byte for byte (the recording's log times differ, the health does not)."""
