@@ -152,10 +152,10 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
         with open_session("client", connect=[ep]) as s:
             sub = s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(100_000))
             probe = s.declare_publisher("hydro/e2e-probe")  # under hydro/**: only the recorder matches it
-            _wait(lambda: probe.matching_status.matching, 90, "the recorder's subscription", procs)
+            _wait(lambda: probe.matching_status.matching, 180, "the recorder's subscription", procs)
             probe.undeclare()
             _wait(lambda: any(r.ok is not None for r in s.liveliness().get("hydro/monitor/e2e", timeout=1.0)),
-                  90, "the monitor's liveliness token", procs)
+                  180, "the monitor's liveliness token", procs)
             procs.start("sim", "sim", "--rate", str(RATE), "--duration", str(SECONDS), *bus)
 
             def drain() -> bool:
@@ -166,7 +166,7 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
                     last[k.split("/")[2]] = p
                 return sorted(last) == sorted(truth) and all(orjson.loads(p)["seq"] == N - 1 for p in last.values())
 
-            _wait(drain, 120, "the last health of every rig", procs)
+            _wait(drain, 240, "the last health of every rig", procs)
             assert procs.wait("sim", 60) == 0, procs.log("sim")
         assert procs.stop("monitor") == 0, procs.log("monitor")
         # the recorder has every config, sample and verdict on disk (flushed within 0.5 s)
