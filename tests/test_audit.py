@@ -31,8 +31,9 @@ def hidden_case(seed: int, name: str | None = None):
 
     Random: the effect (unless given), severity in [0, 0.8) (below the fault band, where the
     leakage makes the piston crawl), the profile, and u in [0, 1] setting the magnitude:
-    Stribeck peak 150..450 N at v_s 5..20 mm/s; spool stop at 50..80 % of the spool's
-    unsaturated peak; overlap 15..45 um; supply resistance 4e9..1e10 Pa/(m^3/s); air
+    Stribeck peak 150..450 N at v_s 5..20 mm/s; spool stop at 70..100 % of the 95th
+    percentile of the unsaturated |x5| (so the stop acts on at least 5 % of the samples; a
+    stop only a rare spike reaches is not an effect the record shows); overlap 15..45 um; supply resistance 4e9..1e10 Pa/(m^3/s); air
     fraction 0.08..0.2; position delay 1..5 samples in or outside the loop; load offset
     +-(300..1500) N. Realistic sensor noise.
     """
@@ -48,7 +49,7 @@ def hidden_case(seed: int, name: str | None = None):
         e = dict(stribeck_F_s=150 + 300 * u, stribeck_v_s=float(rng.uniform(0.005, 0.02)))
     elif name == "valve_saturation":
         free = simulate(profile, DURATION, params=params)
-        e = dict(x_max=float(np.abs(free.states[:, 4]).max() * (0.5 + 0.3 * u)))
+        e = dict(x_max=float(np.quantile(np.abs(free.states[:, 4]), 0.95) * (0.7 + 0.3 * u)))
     elif name == "valve_dead_band":
         e = dict(dead_band=1.5e-5 + 3e-5 * u)
     elif name == "supply_pressure_sag":
@@ -160,10 +161,25 @@ def _sweep(seeds):
 
 
 def test_hidden_effects_small_sweep():
-    """8 seeded random cases (default CI); the bar is the issue's 90 %."""
+    """8 seeded random cases (default CI smoke): at most one miss, no clean record named.
+
+    The issue's bar (90 % over 40 cases) is the slow test below; 90 % of 8 would demand 8/8,
+    which a detector that is right 90 % of the time fails 57 % of the time."""
     hits, none_named, gains, rows = _sweep(range(1000, 1008))
     assert none_named == 0, rows
-    assert hits >= 0.9 * 8, rows
+    assert hits >= 7, rows
+
+
+@pytest.mark.slow
+def test_clean_records_sweep_40():
+    """No clean record (random severity and profile) is named as an effect."""
+    named = []
+    for seed in range(3000, 3040):
+        _, run = hidden_case(seed, "none")
+        res = audit(run.samples, run.config, AuditOptions(free_run=False))
+        if res.cause != "none":
+            named.append((seed, res.cause))
+    assert not named, named
 
 
 @pytest.mark.slow

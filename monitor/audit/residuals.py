@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -387,11 +388,18 @@ def _rest_residuals(b: Block, th_force: dict, train: np.ndarray) -> tuple[np.nda
     return _dead_zone(net, level + f_s), f_s
 
 
-def valve_response(omega: float, zeta: float, h: float, du: np.ndarray) -> np.ndarray:
-    """Unit-gain valve response [m/V * V] to du sampled with period h, first-order hold."""
+@lru_cache(maxsize=4096)
+def _valve_filter(omega: float, zeta: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    # pure function of its arguments; memoised because the grid points recur in every fit
     num, den = [omega * omega], [1.0, 2.0 * zeta * omega, omega * omega]
     b, a, _ = cont2discrete((num, den), h, method="foh")
-    return lfilter(np.ravel(b), np.ravel(a), du)
+    return np.ravel(b), np.ravel(a)
+
+
+def valve_response(omega: float, zeta: float, h: float, du: np.ndarray) -> np.ndarray:
+    """Unit-gain valve response [m/V * V] to du sampled with period h, first-order hold."""
+    b, a = _valve_filter(float(omega), float(zeta), float(h))
+    return lfilter(b, a, du)
 
 
 def _fit_valve(b: Block, h: float, train: np.ndarray) -> tuple[dict, np.ndarray]:
@@ -419,7 +427,7 @@ def _fit_valve(b: Block, h: float, train: np.ndarray) -> tuple[dict, np.ndarray]
                 best = (c, omega, zeta)
     z0 = np.log([best[1], best[2]])
     opt = minimize(lambda z: cost(*np.exp(z))[0], z0, method="Nelder-Mead",
-                   options={"xatol": 1e-3, "fatol": 1e-9 * best[0], "maxfev": 80,
+                   options={"xatol": 2e-3, "fatol": 1e-9 * best[0], "maxfev": 50,
                             "initial_simplex": np.vstack([z0, z0 + [0.15, 0], z0 + [0, 0.15]])})
     omega, zeta = (float(v) for v in np.exp(opt.x))
     omega = min(max(omega, 0.5 * VALVE_OMEGA[0]), 2.0 * VALVE_OMEGA[-1])
