@@ -405,5 +405,13 @@ def test_level_is_max_of_placed_and_confidence_bounded(rel_se, case):
                                 *Ranges.default().to_arrays()[1:], 2.0,
                                 np.full((1, 5), -1, np.int64))
     placed = gr[0][gr[0] >= 0]
-    assert lv[0] == (placed.max() if placed.size else -1)
+    # a parameter straddling exactly one edge is not placed but floors the level at its better side
+    floor = -1
+    ranges = Ranges.default()
+    for name in ranges.params:
+        i = PARAM_NAMES.index(name)
+        ends = [grade_of_values({name: v[i] + d * 2.0 * s[i]}, ranges) for d in (-1.0, 1.0)]
+        if abs(ends[0] - ends[1]) == 1:
+            floor = max(floor, min(ends))
+    assert lv[0] == max(placed.max() if placed.size else -1, floor)
     assert 0.0 <= conf[0] <= 1.0
