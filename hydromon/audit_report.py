@@ -94,8 +94,9 @@ def write_report(result, directory) -> Path:
         fig.tight_layout()
         fig.savefig(d / "freerun.png", dpi=90)
         plt.close(fig)
-    fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
-    for ax, (g, (rows, r)) in zip(axes, result.residuals_nominal.items()):
+    blocks = list(result.residuals_nominal.items())
+    fig, axes = plt.subplots(len(blocks), 1, figsize=(10, 2.2 * len(blocks)), sharex=True)
+    for ax, (g, (rows, r)) in zip(axes, blocks):
         ax.plot(t[rows], r, ".", ms=1, color="tab:red", label="nominal")
         if best is not None:
             br, bres = best.residuals[g]
@@ -112,7 +113,9 @@ def write_report(result, directory) -> Path:
     if result.note:
         md += [result.note, ""]
     md += ["## Candidates (held-out score, higher is better; free-run gain = error reduction)", "",
-           _md_table([(c.name, f"{c.score:.1f}", f"{c.gain:.2f}", c.value, c.equation)
+           _md_table([(c.name, f"{c.score:.2f}", f"{c.gain:.2f}",
+                       ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in c.effect.items()),
+                       c.equation.replace("|", "\\|"))
                       for c in result.candidates], ["name", "score", "gain", "fitted", "equation"]), ""]
     md += ["## Free run on held-out data", "",
            _md_table([(ch, f"{fr[ch]['nrmse_nominal']:.3f}", f"{fr[ch]['nrmse_extended']:.3f}",

@@ -147,6 +147,21 @@ def test_cli_csv_roundtrip(tmp_path, capsys):
     assert doc["cause"] == "load_offset"
 
 
+def test_cli_mcap(tmp_path, capsys):
+    from hydromon.cli import main
+    from hydromon.fleetfile import spread_fleet
+    from hydromon.simnode import write_mcap
+
+    spec = spread_fleet(1, profile="paper-var", noise="realistic").with_overrides(
+        severity=0.3, effects={"load_offset": 1000.0})
+    path = tmp_path / "rec.mcap"
+    with open(path, "wb") as f:
+        write_mcap(spec, DURATION, f)
+    assert main(["audit", str(path), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["cause"] == "load_offset"
+
+
 def _sweep(seeds):
     hits, none_named, gains, rows = 0, 0, [], []
     for seed in seeds:

@@ -3,14 +3,14 @@
 ``audit(samples, config) -> AuditResult`` is pure. The record is split in time: the first
 ``train_fraction`` fits, the rest scores.
 
-1. Identify the nominal model on the training part (``monitor.audit.residuals``: three
-   equation blocks, bias-compensated batch least squares).
+1. Identify the nominal model on the training part (``monitor.audit.residuals``: force,
+   rest, chamber and valve blocks; batch least squares and a valve output-error fit).
 2. For every candidate of the library (``monitor.audit.candidates``), search its nonlinear
    parameter on the training part (best training fit), then score it on the held-out part:
 
        score = sum_g ln(V_g,nominal / V_g,extended) - penalty * k
 
-   with V_g the held-out residual variance of block g (force, chamber, valve; the
+   with V_g the held-out residual variance of block g (force, rest, chamber, valve; the
    regressor-noise share removed, see ``monitor.audit.residuals.Fit.mse``) and k the
    parameters the extension adds. A term earns its place when its score exceeds
    ``threshold`` AND it also improves the training part (sum of training log ratios > 0):
@@ -24,10 +24,10 @@
    searched scalar (dead band, supply resistance) the simulated value is polished among
    ``POLISH`` multiples by the free-run error on the training part only.
 
-The cause is the best-scoring candidate if it earns its place, else "none". When the
-runner-up scores within ``margin`` of the winner, or the winner is Stribeck friction whose
-free-run gain is negligible (Stribeck is nearly collinear with Coulomb plus viscous friction
-at these speeds), ``confident`` is False and ``note`` says which names it could not tell apart.
+The cause is the best-scoring candidate if it earns its place, else "none". When a
+runner-up that also earns its place scores more than ``margin`` times the winner, or the
+winner has a caveat (Stribeck friction: nearly collinear with Coulomb plus viscous friction
+at these speeds) and barely earns its place, ``confident`` is False and ``note`` says why.
 """
 
 from __future__ import annotations

@@ -169,8 +169,8 @@ class ValveSaturation(Candidate):
     """Spool end stop at +-x_max [m] (searched): the valve's motion is clipped."""
 
     name = "valve_saturation"
-    equation = "x5(k) = clip(-a1 x5(k-1) - a2 x5(k-2) + b0 du(k) + b1 du(k-1) + b2 du(k-2), -x_max, x_max)"
-    regressors = ("clip at x_max (valve rows at the stop left out of the fit)",)
+    equation = "x5 = clip(K_sv omega^2 / (s^2 + 2 zeta omega s + omega^2) du, -x_max, x_max)"
+    regressors = ("clip at x_max (valve samples at the stop left out of the fit)",)
     n_extra = 1
 
     def grid(self, sig):

@@ -1,19 +1,29 @@
-"""Batch equation-error model of the audit: signals, the three equation blocks, least squares.
+"""Batch equation-error model of the audit: signals, the equation blocks, their fits.
 
-The audit works on a whole record at once, so it may smooth without phase lag: every
-channel goes through the same zero-phase Savitzky-Golay filter (``scipy.signal.savgol_filter``),
-derivatives come from the same local polynomial, and all rows refer to the same instant.
+The audit works on a whole record at once, so it may filter without phase lag. Every term
+of an equation is formed from the raw samples first (products, orifice factors, sign(v))
+and then passed through the same zero-phase Savitzky-Golay filter L; a derivative is the
+central difference of the filtered signal, so (L x)' = L[x'] holds at every frequency L
+passes (the SG derivative filter breaks that where L attenuates, which misfits fast
+inputs). The chamber equations use a 31-sample window (pressure-rate noise), the force
+equation 11 samples (friction acts near rest).
 
-The nominal model is the paper's, written as three linear-in-parameter blocks (SI):
+The nominal model is the paper's, as four blocks (SI):
 
-* **force** (eq 24): ``A1 x3 - A2 x4 - F_L = m a + (B + f_v) v + f_c sign(v) + K_t x1``
+* **force** (eq 24), on sliding rows (no near-rest instant inside the filter window):
+  ``L[A1 x3 - A2 x4 - F_L] = m L[a] + (B + f_v) L[v] + f_c L[sign v] + K_t L[x1]``
+* **rest**: rows where the piston stands (nearly) still; friction holds the net force up to
+  its static level (f_c for Coulomb friction), so the residual is the net force beyond it
+  (a dead zone), with the force block's parameters and a 2-sigma noise allowance.
 * **chamber** (eqs 28-38, two rows per sample, shared parameters):
 
-      A1 v  = -(1/beta_e) V1 x3' + theta x5 z1 - C_ip (x3 - x4) - C_ep x3
-      -A2 v = -(1/beta_e) V2 x4' - theta x5 z2 + C_ip (x3 - x4) - C_ep x4
+      A1 v  = -(1/beta_e) L[V1 x3'] + theta L[x5 z1] - C_ip L[x3 - x4] - C_ep L[x3]
+      -A2 v = -(1/beta_e) L[V2 x4'] - theta L[x5 z2] + C_ip L[x3 - x4] - C_ep L[x4]
 
-  with V1 = V10 + A1 x1, V2 = V20 - A2 x1, theta = C_d W / sqrt(rho) and z1, z2 the orifice
-  pressure factors of ``plant_sim.model.orifice_z``.
+  with V1 = V10 + A1 x1, V2 = V20 - A2 x1, L[V x'] = (L[V x])' -+ A v L[x], theta =
+  C_d W / sqrt(rho) and z1, z2 the orifice pressure factors of ``plant_sim.model.orifice_z``.
+  Solved by bias-compensated least squares (the pressure-rate column carries filtered
+  sensor noise, which would bias plain least squares toward zero).
 * **valve** (eqs 39-42): output error of the 2nd-order valve driven by
   ``du = K_p (ug - K_f x1_fb)``: x5 is simulated from du alone through the exact discrete
   model for piecewise-linear input (first-order hold) of ``K_sv omega^2 / (s^2 + 2 zeta omega s
@@ -22,9 +32,9 @@ The nominal model is the paper's, written as three linear-in-parameter blocks (S
   a slow command hardly excites the valve's dynamics).
 
 A :class:`Spec` says how the blocks are built (x1 re-aligned, a flow-law transform, a
-spool-stop gate, extra columns); the candidate extensions of ``monitor.audit.candidates``
-are nothing but Specs. ``fit_blocks`` solves each block by least squares on the training
-rows and returns residuals on every row.
+spool-stop gate, extra columns, a static friction search); the candidate extensions of
+``monitor.audit.candidates`` are nothing but Specs. ``fit_blocks`` fits the blocks on the
+training rows and returns residuals on every row.
 """
 
 from __future__ import annotations
