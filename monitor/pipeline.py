@@ -9,11 +9,10 @@ fleet of one; both run the same kernels, and a test pins them equal.
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from hydromon.contract import GRADES, PARAM_NAMES
 from plant_sim.params import RigConfig
@@ -24,8 +23,6 @@ from .identify import WORK_SIZE, IdentOptions, Kernels, identify_step, new_state
 from .layout import O_ROWS, STATE_SIZE
 
 N_P = len(PARAM_NAMES)
-_PARALLEL_MIN = 256  # samples in a batch below which one thread is faster than waking the pool
-_PARALLEL_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -82,12 +79,11 @@ def assess_rig(st, hyper, g_f, g_c, min_rows, p, s):
 @njit(cache=True)
 def _rig_samples(r, order, lo, hi, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows,
                  eval_every, index, sign, edges, margins, z, samples, ev_rig, ev_sample, ev_count, ev_level,
-                 ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot):
-    """Samples order[lo:hi] (all of rig r, in arrival order); events from ``slot`` on. Returns the next slot."""
-    p = np.empty((1, ev_params.shape[1]))
-    s = np.empty((1, ev_params.shape[1]))
-    conv = np.zeros(1, dtype=np.bool_)
-    work = np.empty(WORK_SIZE)
+                 ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot, work, p, s, conv):
+    """Samples order[lo:hi] (all of rig r, in arrival order); events from ``slot`` on. Returns the next slot.
+
+    ``work`` (WORK_SIZE,), ``p``, ``s`` (1, 11) and ``conv`` (1,) are the caller's scratch space.
+    """
     st = states[r]
     rc = consts[r]
     for q in range(lo, hi):
@@ -123,26 +119,20 @@ def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_
     caller to len(samples) // eval_every + number of rigs).
     """
     order = np.arange(rig.shape[0])
+    work, p, s, conv = _scratch(ev_params.shape[1])
     n_ev = 0
     for i in range(rig.shape[0]):
         n_ev = _rig_samples(rig[i], order, i, i + 1, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c,
                             min_rows, eval_every, index, sign, edges, margins, z, samples, ev_rig, ev_sample,
-                            ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, n_ev)
+                            ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, n_ev,
+                            work, p, s, conv)
     return n_ev
 
 
-@njit(cache=True, parallel=True)
-def pipeline_step_rigs(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
-                       index, sign, edges, margins, z, order, group_rig, group_start, group_slot, samples,
-                       ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv):
-    """The same work with the rigs of a batch spread over cores: group g is rig group_rig[g] with
-    samples order[group_start[g]:group_start[g+1]] and its events from slot group_slot[g]. Each rig
-    still consumes its own samples in arrival order, so results equal ``pipeline_step``'s."""
-    for g in prange(group_rig.shape[0]):
-        _rig_samples(group_rig[g], order, group_start[g], group_start[g + 1], states, consts, counts, bands,
-                     hyper, m_f, m_c, g_f, g_c, min_rows, eval_every, index, sign, edges, margins, z, samples,
-                     ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
-                     group_slot[g])
+@njit(cache=True)
+def _scratch(n_params):
+    return (np.empty(WORK_SIZE), np.empty((1, n_params)), np.empty((1, n_params)),
+            np.zeros(1, dtype=np.bool_))
 
 
 @dataclass(frozen=True)
@@ -186,13 +176,11 @@ class Fleet:
         Evaluate and grade a rig every this many of its samples.
     grade_z, grade_margin : float
         Grading's SE gate [standard errors] and hysteresis margin [fraction].
-    parallel : bool
-        Spread the rigs of a large batch over the CPU cores (results are identical).
     """
 
     def __init__(self, options: IdentOptions | None = None, ranges: Ranges | None = None,
                  sample_rate: float = 100.0, eval_every: int = 10, grade_z: float = 3.0,
-                 grade_margin: float = 0.02, capacity: int = 16, parallel: bool = True):
+                 grade_margin: float = 0.02, capacity: int = 16):
         if eval_every < 1:
             raise ValueError(f"eval_every must be >= 1, got {eval_every}")
         self.options = options or IdentOptions()
@@ -201,7 +189,6 @@ class Fleet:
         self.eval_every = int(eval_every)
         self.grade_z = float(grade_z)
         self.grade_margin = float(grade_margin)
-        self.parallel = bool(parallel)
         self._k = Kernels(self.options, 1.0 / self.sample_rate)
         self._ra = self.ranges.to_arrays(grade_margin)
         self.ids: list[str] = []
@@ -274,19 +261,7 @@ class Fleet:
         args = (self.states, self.consts, self.counts, self.bands, k.hyper, k.m_f, k.m_c, k.g_f, k.g_c,
                 float(self.options.min_rows), self.eval_every, ra.index, ra.sign, ra.edges, ra.margins,
                 self.grade_z)
-        parallel = self.parallel and len(rig) >= _PARALLEL_MIN
-        if parallel:
-            order = np.argsort(rig, kind="stable")
-            group_rig, first, n_per = np.unique(rig[order], return_index=True, return_counts=True)
-            if len(group_rig) < 2:
-                parallel = False
-        if parallel:
-            c0 = self.counts[group_rig]
-            n_ev_g = (c0 + n_per) // self.eval_every - c0 // self.eval_every
-            group_slot = np.concatenate([[0], np.cumsum(n_ev_g)[:-1]]).astype(np.int64)
-            cap = int(n_ev_g.sum())
-        else:
-            cap = len(rig) // self.eval_every + len(self.ids) + 1
+        cap = len(rig) // self.eval_every + len(self.ids) + 1
         ng = len(ra.index)
         ev = dict(
             rig=np.empty(cap, np.int64), sample=np.empty(cap, np.int64), counts=np.empty(cap, np.int64),
@@ -296,12 +271,6 @@ class Fleet:
         )
         outs = (ev["rig"], ev["sample"], ev["counts"], ev["level"], ev["confidence"], ev["params"],
                 ev["std_errors"], ev["grades"], ev["converged"])
-        if parallel:
-            starts = np.append(first, len(rig)).astype(np.int64)
-            with _PARALLEL_LOCK:  # numba's default thread pool must not be entered from two threads
-                pipeline_step_rigs(*args, order, group_rig.astype(np.int64), starts, group_slot, samples, *outs)
-            by_arrival = np.argsort(ev["sample"], kind="stable")
-            return Events(**{key: v[by_arrival] for key, v in ev.items()})
         n = pipeline_step(*args, rig, samples, *outs)
         return Events(**{key: v[:n] for key, v in ev.items()})
 
