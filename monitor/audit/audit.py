@@ -45,7 +45,7 @@ from .residuals import BLOCKS, Fit, build_blocks, fit_blocks, nominal_params, si
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
 
-POLISH = (0.6, 0.8, 1.25)  # factors on a refined searched value tried in the free-run polish
+POLISH = (0.4, 0.6, 0.8, 1.25)  # factors on a refined searched value tried in the free-run polish
 
 
 @dataclass(frozen=True)

@@ -187,8 +187,10 @@ class ValveSaturation(Candidate):
 
 def _sagged_factor(a: np.ndarray, dp: np.ndarray, r: float) -> np.ndarray:
     """Flow [m^3/s] through q = a sqrt(2 (dp - r q)) (a >= 0, dp >= 0), as plant_sim.model."""
+    # the positive root -a^2 r + sqrt(a^4 r^2 + 2 a^2 dp), rationalised (no cancellation)
     a2 = a * a
-    return -a2 * r + np.sqrt(a2 * a2 * r * r + 2.0 * a2 * dp)
+    den = a2 * r + np.sqrt(a2 * a2 * r * r + 2.0 * a2 * dp)
+    return np.where(den > 0, 2.0 * a2 * dp / np.where(den > 0, den, 1.0), 0.0)
 
 
 def _sag_flow(r):
