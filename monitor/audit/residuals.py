@@ -54,7 +54,11 @@ __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", 
            "nominal_params", "BLOCKS", "orifice_factors"]
 
 BLOCKS = ("force", "rest", "chamber", "valve")
-REST_FLOOR = 4.0  # [N^2] floor of the rest block's variance (2 N rms: below it, nothing is held)
+VAR_FLOOR = {"force": 25.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
+"""Resolution floors of the blocks' residual variances [N^2, N^2, (m^3/s)^2, m^2] (5 N, 2 N,
+1e-7 m^3/s, 0.2 um rms), well below realistic sensor noise: on near noise-free records a
+scale-free ratio of tiny model-approximation errors would otherwise look like evidence."""
+REST_V_RESOLUTION = 2e-3  # [m/s] rest rows need a velocity resolution (3 noise sigmas) finer than this
 STATIC_GRID = np.linspace(0.0, 600.0, 61)  # [N] static friction above Coulomb searched by ``static_search``
 SG_WINDOW = 31  # [samples] window of the chamber equations' filter L (odd)
 FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction acts near rest: keep it short)
@@ -285,7 +289,9 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
                   noise_load=fnl)
     # rest rows: the piston (nearly) stands still, friction holds whatever the net force is up
     # to the static level; residual = the net force beyond it (a dead zone), see fit_blocks
-    still = slow[rows] > 0
+    # (no rest rows when the position noise hides whether the piston stands: a slow slide
+    # would pass for a stick)
+    still = (slow[rows] > 0) & (3.0 * sig.v_noise < REST_V_RESOLUTION)
     sigma_net = math.hypot(a1 * sig.sigma[1], a2 * sig.sigma[2]) * sig.gain_f[0]
     rX = np.column_stack([c[rows] for c in fcols.values()])[still]
     rest = Block("rest", fy[still], rX, tuple(fcols), rows[still], np.ones(int(still.sum()), bool),
@@ -362,7 +368,7 @@ class Fit:
         if not len(r):
             return math.nan
         raw = float(np.mean(r * r))
-        floor = REST_FLOOR if name == "rest" else 0.01 * raw
+        floor = VAR_FLOOR[name] if name == "rest" else max(0.01 * raw, VAR_FLOOR[name])
         return max(raw - float(np.mean(self.noise_terms[name][rows_mask])), floor)
 
 
