@@ -335,6 +335,12 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             note = f"{top.name} barely earns its place: {top.caveat}"
     else:
         note = f"no extension earns its place (best {top.name} scores {top.score:.2f} <= {opt.threshold:g})"
+        weak = [c for c in results if opt.threshold / 3 < c.score <= opt.threshold]
+        if weak:
+            note += "; weak evidence for " + ", ".join(f"{c.name} ({c.score:.2f})" for c in weak)
+        hard = [c for c in results if c.caveat and c not in weak]
+        if hard:
+            note += "; cannot be excluded: " + "; ".join(f"{c.name} ({c.caveat})" for c in hard)
 
     return AuditResult(
         cause=cause, confident=confident, note=note, candidates=results, params_nominal=p_nom,
