@@ -62,6 +62,10 @@ def summary(result) -> str:
     return "\n".join(lines)
 
 
+def _effect_text(effect: dict) -> str:
+    return ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in effect.items())
+
+
 def _md_table(rows, header):
     out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
@@ -114,7 +118,7 @@ def write_report(result, directory) -> Path:
         md += [result.note, ""]
     md += ["## Candidates (held-out score, higher is better; free-run gain = error reduction)", "",
            _md_table([(c.name, f"{c.score:.2f}", f"{c.gain:.2f}",
-                       ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in c.effect.items()),
+                       _effect_text(c.effect),
                        c.equation.replace("|", "\\|"))
                       for c in result.candidates], ["name", "score", "gain", "fitted", "equation"]), ""]
     md += ["## Free run on held-out data", "",
@@ -128,7 +132,8 @@ def write_report(result, directory) -> Path:
                       for g, v in fr["residual_variance"].items()], ["equation", "nominal", "extended"]), "",
            "![residuals](residuals.png)", ""]
     md += ["## Identified parameters (SI)", "",
-           _md_table([(k, f"{v:.4g}", f"{best.params[k]:.4g}" if best else "") for k, v in result.params_nominal.items()],
+           _md_table([(k, f"{v:.4g}", f"{best.params[k]:.4g}" if best else "")
+                      for k, v in result.params_nominal.items()],
                      ["name", "nominal", "extended"]), ""]
     path = d / "audit.md"
     path.write_text("\n".join(md))

@@ -33,7 +33,8 @@ def hidden_case(seed: int, name: str | None = None, noise: str = "realistic"):
     leakage makes the piston crawl), the profile, and u in [0, 1] setting the magnitude:
     Stribeck peak 150..450 N at v_s 5..20 mm/s; spool stop at 70..100 % of the 95th
     percentile of the unsaturated |x5| (so the stop acts on at least 5 % of the samples; a
-    stop only a rare spike reaches is not an effect the record shows); overlap 15..45 um; supply resistance 4e9..1e10 Pa/(m^3/s); air
+    stop only a rare spike reaches is not an effect the record shows); overlap 15..45 um;
+    supply resistance 4e9..1e10 Pa/(m^3/s); air
     fraction 0.08..0.2; position delay 1..5 samples in or outside the loop; load offset
     +-(300..1500) N. Realistic sensor noise unless ``noise`` says otherwise.
     """

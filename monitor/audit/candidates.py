@@ -18,7 +18,6 @@ candidate, chosen by the training fit.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,7 +113,8 @@ class StribeckFriction(Candidate):
     """
 
     name = "stribeck_friction"
-    equation = "at rest: |A1 x3 - A2 x4 - F_L - K_t x1 - m a| <= f_c + F_s;  sliding: sign(v)(f_c + F_s exp(-(v/v_s)^2))"
+    equation = ("at rest: |A1 x3 - A2 x4 - F_L - K_t x1 - m a| <= f_c + F_s;  "
+                "sliding: sign(v)(f_c + F_s exp(-(v/v_s)^2))")
     regressors = ("static friction level f_c + F_s on the rest rows (dead zone)",)
     n_extra = 1
     caveat = ("at the record's speeds the Stribeck term is nearly collinear with Coulomb + viscous "
