@@ -438,7 +438,7 @@ class RateLimitedLog:
 def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, node_name: str = "monitor",
                 stop_event: threading.Event | None = None, duration: float | None = None,
                 core: MonitorCore | None = None, capacity: int = 65536, max_batch: int = 20000,
-                poll_s: float = 0.002, on_health: Callable[[str, bytes], None] | None = None,
+                poll_s: float = 0.005, on_health: Callable[[str, bytes], None] | None = None,
                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
                 config_query_s: float = 5.0, clock=time.monotonic) -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
@@ -456,7 +456,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     max_batch : int
         Most messages drained into one batch.
     poll_s : float
-        Wait when nothing is queued [s].
+        Wait after each drained batch [s]: arrivals accumulate into the next batch (adds at
+        most this much latency; saves the fixed cost of many tiny batches).
     on_health : callable or None
         Called with ``(key, payload)`` of each health message after it is published.
     config_query_s : float
@@ -527,7 +528,9 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             n = drain()
             if stop.is_set() or (deadline is not None and clock() >= deadline):
                 break
-            if n == 0:
+            if n < max_batch:
+                # let arrivals accumulate: one batch per poll_s amortises the per-batch cost
+                # (measured: 9 samples a batch cost 36 us a sample live, against 5 us offline)
                 stop.wait(poll_s)
         for _ in range(100):  # what is already queued (bounded: a producer may still be sending)
             if drain() < max_batch:
