@@ -58,6 +58,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import re
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -435,12 +436,28 @@ class RateLimitedLog:
         self.logger.warning("rejected %s on %s: %s%s", reason, key[:200], detail[:200], more)
 
 
+_RIG_PATTERN_RE = re.compile(r"\*|\$\*|[A-Za-z0-9_$*-]{1,64}")
+
+
+def rig_pattern(pattern: str) -> str:
+    """Validate a rig-id key-expression chunk (``*``, ``line1-*``, ``a$*b``) for sharding."""
+    if not isinstance(pattern, str) or not _RIG_PATTERN_RE.fullmatch(pattern) or "**" in pattern:
+        raise ValueError(f"rig pattern {pattern!r}: one key-expression chunk of [A-Za-z0-9_-], '*' or '$*'")
+    if pattern != "*" and "*" in pattern:
+        pattern = re.sub(r"(?<!\$)\*", "$*", pattern)  # inside a chunk zenoh spells the wildcard $*
+    try:
+        zenoh.KeyExpr(f"x/{pattern}")
+    except Exception as exc:  # zenoh's own verdict on the expression
+        raise ValueError(f"rig pattern {pattern!r}: {exc}") from None
+    return pattern
+
+
 def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, node_name: str = "monitor",
                 stop_event: threading.Event | None = None, duration: float | None = None,
                 core: MonitorCore | None = None, capacity: int = 65536, max_batch: int = 20000,
                 poll_s: float = 0.005, on_health: Callable[[str, bytes], None] | None = None,
                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
-                config_query_s: float = 5.0, clock=time.monotonic) -> MonitorCore:
+                config_query_s: float = 5.0, clock=time.monotonic, rigs: str = "*") -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
 
     Parameters
@@ -460,6 +477,10 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         most this much latency; saves the fixed cost of many tiny batches).
     on_health : callable or None
         Called with ``(key, payload)`` of each health message after it is published.
+    rigs : str
+        Which rigs this monitor grades: one key-expression chunk matched against the rig id
+        (``*`` all, ``line1-*`` a prefix, ``$*`` wildcards inside a chunk). Several monitors with
+        disjoint patterns shard a plant: each rig's state lives in exactly one of them.
     config_query_s : float
         At start, the monitor queries ``<ns>/rig/*/config`` for the configs of rigs that
         are already running; replies count as config messages for this long [s].
@@ -491,15 +512,17 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             if on_health is not None:
                 on_health(key, payload)
 
-    sub_c = session.declare_subscriber(f"{namespace}/rig/*/config", zenoh.handlers.FifoChannel(capacity))
-    sub_s = session.declare_subscriber(f"{namespace}/rig/*/sample", zenoh.handlers.FifoChannel(capacity))
+    rig_chunk = rig_pattern(rigs)
+    sub_c = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/config", zenoh.handlers.FifoChannel(capacity))
+    sub_s = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/sample", zenoh.handlers.FifoChannel(capacity))
     queryable = session.declare_queryable(f"{namespace}/rig/*/health", answer)
     # last: a peer that sees the token has seen the subscribers declared before it
     token = session.liveliness().declare_token(liveliness_key(node_name, namespace))
 
     # rigs that published their config before we came up: ask their nodes (the sim node
     # answers on <ns>/rig/*/config); replies are handled as config messages
-    replies = session.get(f"{namespace}/rig/*/config", zenoh.handlers.FifoChannel(4096), timeout=config_query_s)
+    replies = session.get(f"{namespace}/rig/{rig_chunk}/config", zenoh.handlers.FifoChannel(4096),
+                          timeout=config_query_s)
     replies_until = clock() + config_query_s + 1.0
 
     def drain() -> int:

@@ -17,6 +17,9 @@ def add_arguments(parser) -> None:
                         help="stop after this many seconds (default: until Ctrl-C / SIGTERM)")
     parser.add_argument("--node", default="monitor", metavar="NAME",
                         help="node name of the liveliness token <namespace>/monitor/NAME (default monitor)")
+    parser.add_argument("--rigs", default="*", metavar="PATTERN",
+                        help="grade only rigs whose id matches this key-expression chunk, e.g. 'line1-*' "
+                             "(shard a plant over several monitors; default all)")
     parser.add_argument("--eval-every", type=int, default=10, metavar="N",
                         help="a health message every N samples of a rig (default 10)")
     add_bus_arguments(parser)
@@ -32,10 +35,10 @@ def run(args) -> int:
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with session_from_args(args) as session:
-            print(f"hydromon monitor: node {args.node!r} on {args.namespace}/rig/*/sample", file=sys.stderr,
-                  flush=True)
+            print(f"hydromon monitor: node {args.node!r} on {args.namespace}/rig/{args.rigs}/sample",
+                  file=sys.stderr, flush=True)
             run_monitor(session, namespace=args.namespace, node_name=args.node, stop_event=stop,
-                        duration=args.duration, core=core)
+                        duration=args.duration, core=core, rigs=args.rigs)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
