@@ -79,7 +79,8 @@ def _inv_small(A: np.ndarray) -> np.ndarray:
 
 @njit(cache=True)
 def _compensate(theta, cov, P, S):
-    """theta_bc = (I - P S)^-1 theta and its covariance; unchanged if the correction is not small."""
+    """theta_bc = (I - P S)^-1 theta and its covariance. If the correction is not small the
+    estimate is left as it is and the predicted bias widens its variance instead."""
     n = theta.shape[0]
     M = np.empty((n, n))
     norm = 0.0
@@ -91,7 +92,18 @@ def _compensate(theta, cov, P, S):
             norm += acc * acc
             M[i, j] = (1.0 if i == j else 0.0) - acc
     if not (math.sqrt(norm) < 0.5):
-        return theta, cov
+        # the regressor noise is too large for a first-order correction: keep the estimate but
+        # carry the bias it predicts, (P S) theta, into the covariance so the SE stays honest
+        C = cov.copy()
+        for i in range(n):
+            b = 0.0
+            for k in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += P[i, j] * S[j, k]
+                b += acc * theta[k]
+            C[i, i] += b * b
+        return theta, C
     Mi = _inv_small(M)
     th = np.zeros(n)
     T = np.zeros((n, n))

@@ -101,7 +101,7 @@ class IdentOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    a_force: float = Field(120.0, gt=0)
+    a_force: float = Field(80.0, gt=0)
     a_chamber: float = Field(25.0, gt=0)
     lam: float = Field(1.0, gt=0, le=1)
     warmup: float = Field(0.4, ge=0)
@@ -114,7 +114,7 @@ class IdentOptions(BaseModel):
     noise_window: int = Field(2000, ge=10)
     min_rows: int = Field(300, ge=1)
     v_stick: float = Field(2e-3, ge=0)
-    reversal_guard: float = Field(0.07, ge=0)
+    reversal_guard: float = Field(0.1, ge=0)
 
 
 class Kernels:
