@@ -141,13 +141,13 @@ class Events:
 
     rig: np.ndarray
     sample: np.ndarray  # index of the sample in the batch after which the rig was evaluated
+    counts: np.ndarray  # the rig's sample count at the event
     level: np.ndarray
     confidence: np.ndarray
     params: np.ndarray
     std_errors: np.ndarray
     grades: np.ndarray
     converged: np.ndarray
-    counts: np.ndarray  # the rig's sample count at the event
 
     def __len__(self) -> int:
         return len(self.rig)
@@ -198,6 +198,17 @@ class Fleet:
         self.consts = np.zeros((capacity, 8))
         self.counts = np.zeros(capacity, dtype=np.int64)
         self.bands = np.full((capacity, len(self._ra.index)), -1, dtype=np.int64)
+        self._ev_cap = 0
+        self._alloc_events(16)
+        self._no_events = Events(*(v[:0].copy() for v in self._ev))
+        self._bind()
+
+    def _bind(self) -> None:
+        """The kernel's fixed arguments (rebuilt when the state arrays are reallocated)."""
+        k, ra = self._k, self._ra
+        self._args = (self.states, self.consts, self.counts, self.bands, k.hyper, k.m_f, k.m_c, k.g_f, k.g_c,
+                      float(self.options.min_rows), self.eval_every, ra.index, ra.sign, ra.edges, ra.margins,
+                      self.grade_z)
 
     @property
     def graded(self) -> tuple:
@@ -230,6 +241,7 @@ class Fleet:
         self.consts = np.vstack([self.consts, np.zeros_like(self.consts)])[:n]
         self.counts = np.concatenate([self.counts, np.zeros_like(self.counts)])[:n]
         self.bands = np.vstack([self.bands, np.full_like(self.bands, -1)])[:n]
+        self._bind()
 
     def set_config(self, rig: int, config: RigConfig) -> None:
         """New rig constants; the estimates restart (they were identified against the old ones)."""
@@ -253,26 +265,30 @@ class Fleet:
         """
         rig = np.ascontiguousarray(rig, dtype=np.int64)
         samples = np.ascontiguousarray(samples, dtype=np.float64)
-        if samples.ndim != 2 or samples.shape[1] != 5 or rig.shape != (samples.shape[0],):
+        m = rig.shape[0] if rig.ndim == 1 else -1
+        if samples.ndim != 2 or samples.shape[1] != 5 or samples.shape[0] != m:
             raise ValueError(f"need rig (m,) and samples (m, 5), got {rig.shape} and {samples.shape}")
-        if len(rig) and (rig.min() < 0 or rig.max() >= len(self.ids)):
+        if m == 1:
+            if not 0 <= rig[0] < len(self.ids):
+                raise ValueError("rig index out of range")
+        elif m and (rig.min() < 0 or rig.max() >= len(self.ids)):
             raise ValueError("rig index out of range")
-        k, ra = self._k, self._ra
-        args = (self.states, self.consts, self.counts, self.bands, k.hyper, k.m_f, k.m_c, k.g_f, k.g_c,
-                float(self.options.min_rows), self.eval_every, ra.index, ra.sign, ra.edges, ra.margins,
-                self.grade_z)
-        cap = len(rig) // self.eval_every + len(self.ids) + 1
-        ng = len(ra.index)
-        ev = dict(
-            rig=np.empty(cap, np.int64), sample=np.empty(cap, np.int64), counts=np.empty(cap, np.int64),
-            level=np.empty(cap, np.int64), confidence=np.empty(cap), params=np.empty((cap, N_P)),
-            std_errors=np.empty((cap, N_P)), grades=np.empty((cap, ng), np.int64),
-            converged=np.empty(cap, np.bool_),
-        )
-        outs = (ev["rig"], ev["sample"], ev["counts"], ev["level"], ev["confidence"], ev["params"],
-                ev["std_errors"], ev["grades"], ev["converged"])
-        n = pipeline_step(*args, rig, samples, *outs)
-        return Events(**{key: v[:n] for key, v in ev.items()})
+        cap = m // self.eval_every + len(self.ids) + 1
+        if cap > self._ev_cap:
+            self._alloc_events(cap)
+        n = pipeline_step(*self._args, rig, samples, *self._ev)
+        if n == 0:
+            return self._no_events
+        return Events(*(v[:n].copy() for v in self._ev))
+
+    def _alloc_events(self, cap: int) -> None:
+        # reused between calls: a sample's call allocates nothing until it has events to return
+        cap = max(cap, 2 * self._ev_cap)
+        ng = len(self._ra.index)
+        self._ev = (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
+                    np.empty(cap, np.int64), np.empty(cap), np.empty((cap, N_P)), np.empty((cap, N_P)),
+                    np.empty((cap, ng), np.int64), np.empty(cap, np.bool_))
+        self._ev_cap = cap
 
     def estimate(self, rig: int) -> Assessment:
         """Evaluate one rig now (does not move its hysteresis state)."""
