@@ -240,13 +240,3 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
                     for b in range(5):
                         acc += J[i, a] * 0.5 * (P[a, b] + P[b, a]) * J[i, b]
                 se[8 + i] = math.sqrt(max(acc * f, 0.0))
-
-
-@njit(cache=True)
-def fleet_estimates(states, hyper, g_f, g_c, rigs, params, se, rows):
-    """Estimates of the listed rigs: params, se (len(rigs), 11), rows (len(rigs), 3)."""
-    for i in range(rigs.shape[0]):
-        r = rigs[i]
-        estimates(states[r], hyper, g_f, g_c, params[i], se[i])
-        for j in range(3):
-            rows[i, j] = states[r, O_ROWS + j]

@@ -300,12 +300,9 @@ class Fleet:
         band = self.bands[rig:rig + 1].copy()
         level, grades, conf = grade_kernel(p, s, conv, ra.index, ra.sign, ra.edges, ra.margins,
                                            self.grade_z, band)
-        return Assessment(
-            count=int(self.counts[rig]), level=int(level[0]), confidence=float(conf[0]),
-            params=dict(zip(PARAM_NAMES, map(float, p[0]))),
-            std_errors=dict(zip(PARAM_NAMES, map(float, s[0]))),
-            param_levels=dict(zip(ra.names, map(int, grades[0]))), converged=bool(conv[0]),
-        )
+        one = Events(rig=np.array([rig]), sample=np.array([-1]), counts=self.counts[rig:rig + 1].copy(),
+                     level=level, confidence=conf, params=p, std_errors=s, grades=grades, converged=conv)
+        return one.assessment(0, ra.names)
 
 
 class Pipeline:

@@ -131,13 +131,6 @@ def riv_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray,
     return e
 
 
-@njit(cache=True)
-def riv_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray, y: float, lam: float,
-             p_max: float) -> float:
-    """``riv_update`` with its own scratch space."""
-    return riv_update(theta, P, phi, z, y, lam, p_max, np.empty(2 * theta.shape[0]))
-
-
 class RLS:
     """Streaming RLS for one linear model y = phi' theta (a thin holder around ``rls_step``).
 
