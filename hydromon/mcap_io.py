@@ -29,6 +29,9 @@ import numpy as np
 import zstandard
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
+from mcap.records import Chunk
+from mcap.data_stream import ReadDataStream
+from mcap.stream_reader import get_chunk_data_stream
 from mcap.writer import CompressionType, Writer
 from pydantic import ValidationError
 
@@ -279,13 +282,68 @@ def read_recording(src, topics: Iterable[str] | str | None = None, start_ns: int
     def gen():
         with stack:
             try:
-                for _schema, channel, msg in make_reader(f).iter_messages(
+                reader = make_reader(f)
+                summary = reader.get_summary() if f.seekable() else None
+                if _chunks_in_order(summary):
+                    yield from _chunked_messages(f, summary, topics, start_ns, end_ns)
+                    return
+                for _schema, channel, msg in reader.iter_messages(
                         topics=topics, starting_at=start_ns, ending_before=end_ns):
                     yield channel.topic, msg.data, msg.log_time, msg.publish_time
             except _DECODE_ERRORS as exc:
                 raise CorruptRecording(f"{name}: {type(exc).__name__}: {exc}") from exc
 
     return gen()
+
+
+_RECORD_HEAD = struct.Struct("<BQ")  # opcode, record length
+_MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
+_OP_MESSAGE = 0x05
+
+
+def _chunks_in_order(summary) -> bool:
+    """True when the file's chunks, in file order, cover disjoint, ascending log-time spans
+    (what the recorder and ``sim --to-mcap`` write): then file order with each chunk's messages
+    stably sorted by log time is exactly the library's log-time order."""
+    if summary is None or not summary.chunk_indexes:
+        return False
+    idx = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    return all(a.message_end_time <= b.message_start_time for a, b in zip(idx, idx[1:]))
+
+
+def _chunked_messages(f, summary, topics, start_ns, end_ns):
+    """Messages chunk by chunk, in log-time order (ties in file order), as read_recording yields.
+
+    The mcap library's ordered reader merges every message through a heap of Python objects
+    (measured: 70 % of a direct replay's time); for chunks that do not overlap in time that
+    merge is a per-chunk stable sort, and the records of a decompressed chunk are sliced here
+    with two struct unpacks each. Decompression and CRC checks stay the library's.
+    """
+    channels = summary.channels
+    wanted = None if topics is None else {cid for cid, c in channels.items() if c.topic in set(topics)}
+    lo = -1 if start_ns is None else start_ns
+    hi = _U64 if end_ns is None else end_ns
+    for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+        if ci.message_end_time < lo or ci.message_start_time >= hi:
+            continue
+        f.seek(ci.chunk_start_offset + 1 + 8)
+        stream, size = get_chunk_data_stream(Chunk.read(ReadDataStream(f)))
+        data = stream.read(size)
+        out = []
+        pos = 0
+        while pos < size:
+            op, length = _RECORD_HEAD.unpack_from(data, pos)
+            pos += 9
+            if op == _OP_MESSAGE:
+                cid, _seq, log_ns, pub_ns = _MESSAGE_HEAD.unpack_from(data, pos)
+                if lo <= log_ns < hi and (wanted is None or cid in wanted):
+                    out.append((channels[cid].topic, data[pos + 22:pos + length], log_ns, pub_ns))
+            pos += length
+        if pos != size:
+            raise CorruptRecording(f"chunk at offset {ci.chunk_start_offset}: records overrun the chunk")
+        if any(a[2] > b[2] for a, b in zip(out, out[1:])):
+            out.sort(key=lambda m: m[2])  # stable: ties keep file order, as the library's heap does
+        yield from out
 
 
 def _topics(src) -> list[str]:

@@ -251,8 +251,9 @@ class NaiveIdentifier:
         """The state packed into ``monitor.layout``'s flat row (for the shared read-out)."""
         st = np.zeros(STATE_SIZE)
         st[O_N] = self.n
-        # the compiled kernel's ring slot of sample k is k % RING: same as ours
-        st[O_RING:O_RING + RING * N_CH] = self.ring.ravel()
+        # the compiled kernel's ring is a shift register: slot j holds the sample j before the newest
+        lags = (self.n - 1 - np.arange(RING)) % RING
+        st[O_RING:O_RING + RING * N_CH] = self.ring[lags].ravel()
         st[O_SVF_F:O_SVF_F + 9] = self.svf_f.ravel()
         st[O_SVF_C:O_SVF_C + 27] = self.svf_c.ravel()
         st[O_TH_F:O_TH_F + 4], st[O_P_F:O_P_F + 16] = self.th_f, self.P_f.ravel()

@@ -26,7 +26,7 @@ from .layout import (
 )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sigma2_kappa(st, streams, n_par):
     e2 = 0.0
     w = 0.0
@@ -46,7 +46,7 @@ def _sigma2_kappa(st, streams, n_par):
     return s2, kappa
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _inv_small(A: np.ndarray) -> np.ndarray:
     """Inverse of a small square matrix by Gauss-Jordan with partial pivoting (NaN if singular)."""
     n = A.shape[0]
@@ -77,7 +77,7 @@ def _inv_small(A: np.ndarray) -> np.ndarray:
     return a[:, n:].copy()
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _compensate(theta, cov, P, S):
     """theta_bc = (I - P S)^-1 theta and its covariance. If the correction is not small the
     estimate is left as it is and the predicted bias widens its variance instead."""
@@ -122,7 +122,7 @@ def _compensate(theta, cov, P, S):
     return th, C
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def valve_physical(th: np.ndarray, h: float) -> np.ndarray:
     """[2 zeta omega, omega^2, K_sv omega^2] from ARX [a1, a2, b0, b1, b2] (x5 scaled by X5_NOM)."""
     out = np.empty(3)
@@ -130,7 +130,7 @@ def valve_physical(th: np.ndarray, h: float) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _valve_physical(th: np.ndarray, h: float, out: np.ndarray) -> np.ndarray:
     out[:] = np.nan
     a1, a2 = th[0], th[1]
@@ -166,7 +166,7 @@ def _valve_physical(th: np.ndarray, h: float, out: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarray,
               params: np.ndarray, se: np.ndarray) -> None:
     """Write the 11 physical parameters and their standard errors (NaN/inf where unknown)."""

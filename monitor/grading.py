@@ -174,7 +174,7 @@ class Ranges(BaseModel):
         return RangeArrays(names, index, sign, edges, margins)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _count_past(u: float, f: np.ndarray, m: np.ndarray, shift: float) -> int:
     """#{j : u > f_j + shift m_j}, u and edges f in the worsening coordinate (sign * value)."""
     n = 0
@@ -184,7 +184,7 @@ def _count_past(u: float, f: np.ndarray, m: np.ndarray, shift: float) -> int:
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _band_width(g: int, f: np.ndarray) -> float:
     """Width of band g between edges f (outer bands take their inner neighbour's width)."""
     if g <= 0:
@@ -194,7 +194,7 @@ def _band_width(g: int, f: np.ndarray) -> float:
     return f[g] - f[g - 1]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _p_at_most(g: int, u: float, s: float, f: np.ndarray) -> float:
     """P(true grade <= g) for a true value ~ N(u, s^2) in the worsening coordinate."""
     if g < 0:
@@ -206,7 +206,7 @@ def _p_at_most(g: int, u: float, s: float, f: np.ndarray) -> float:
     return 0.5 * math.erfc((u - f[g]) / (s * math.sqrt(2.0)))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def grade_kernel(values, std_errors, converged, index, sign, edges, margins, z, band):
     """One grading step for many rigs; updates ``band`` in place.
 

@@ -158,7 +158,7 @@ def new_state(hyper: np.ndarray) -> np.ndarray:
     return st
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reset_estimates(st: np.ndarray, hyper: np.ndarray) -> None:
     """Forget all estimates (theta = 0, P = p0 I) and statistics; keeps nothing."""
     st[:] = 0.0
@@ -170,19 +170,20 @@ def reset_estimates(st: np.ndarray, hyper: np.ndarray) -> None:
         st[O_P_V + 6 * i] = p0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reset_signals(st: np.ndarray) -> None:
     """Restart the signal path (after a gap): filters re-initialise, estimates are kept."""
     st[O_N] = 0.0
 
 
-@njit(cache=True)
-def _ring(st, n, lag, ch):
-    # value of channel ch, `lag` samples before sample n (n = index of the newest)
-    return st[O_RING + ((n - lag) % RING) * N_CH + ch]
+@njit(cache=True, error_model="numpy")
+def _ring(st, lag, ch):
+    # value of channel ch, `lag` samples before the newest (the ring is a shift register:
+    # slot `lag` holds that sample, so no modulo on the hot path)
+    return st[O_RING + lag * N_CH + ch]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _dot(a, b):
     acc = 0.0
     for i in range(a.shape[0]):
@@ -190,7 +191,7 @@ def _dot(a, b):
     return acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _residual_stats(st, stream, e, lam):
     w = O_RES_W + stream
     st[w] = lam * st[w] + 1.0
@@ -204,7 +205,7 @@ def _residual_stats(st, stream, e, lam):
     st[hb] = e
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _noise_update(st, n, hyper):
     # running mean of squared 4th differences: white noise of variance s^2 gives 70 s^2
     if n < 4:
@@ -214,8 +215,8 @@ def _noise_update(st, n, hyper):
     w = 1.0 / min(cnt, hyper[H_NOISE_N])
     for c in range(4):
         ch = c + 1
-        d4 = (_ring(st, n, 0, ch) - 4.0 * _ring(st, n, 1, ch) + 6.0 * _ring(st, n, 2, ch)
-              - 4.0 * _ring(st, n, 3, ch) + _ring(st, n, 4, ch))
+        d4 = (_ring(st, 0, ch) - 4.0 * _ring(st, 1, ch) + 6.0 * _ring(st, 2, ch)
+              - 4.0 * _ring(st, 3, ch) + _ring(st, 4, ch))
         v = d4 * d4
         cur = st[O_NOISE + c]
         if cnt > 50.0 and v > 100.0 * cur:
@@ -223,16 +224,16 @@ def _noise_update(st, n, hyper):
         st[O_NOISE + c] = cur + w * (v - cur)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _valve_row(st, rc, hyper, n, phi, z):
     """Valve ARX(2,3) row at the newest sample n (needs n >= 2)."""
     kp, kf = rc[C_KP], rc[C_KF]
-    du0 = kp * (_ring(st, n, 0, 0) - kf * _ring(st, n, 0, 1))
-    du1 = kp * (_ring(st, n, 1, 0) - kf * _ring(st, n, 1, 1))
-    du2 = kp * (_ring(st, n, 2, 0) - kf * _ring(st, n, 2, 1))
-    y = _ring(st, n, 0, 4) / X5_NOM
-    phi[0] = -_ring(st, n, 1, 4) / X5_NOM
-    phi[1] = -_ring(st, n, 2, 4) / X5_NOM
+    du0 = kp * (_ring(st, 0, 0) - kf * _ring(st, 0, 1))
+    du1 = kp * (_ring(st, 1, 0) - kf * _ring(st, 1, 1))
+    du2 = kp * (_ring(st, 2, 0) - kf * _ring(st, 2, 1))
+    y = _ring(st, 0, 4) / X5_NOM
+    phi[0] = -_ring(st, 1, 4) / X5_NOM
+    phi[1] = -_ring(st, 2, 4) / X5_NOM
     phi[2] = du0
     phi[3] = du1
     phi[4] = du2
@@ -256,14 +257,14 @@ def _valve_row(st, rc, hyper, n, phi, z):
         xh = y
     st[O_XH + 1] = xh1
     st[O_XH] = xh
-    step = abs(_ring(st, n, 0, 0) - 2.0 * _ring(st, n, 1, 0) + _ring(st, n, 2, 0)) > hyper[H_STEP_TOL]
+    step = abs(_ring(st, 0, 0) - 2.0 * _ring(st, 1, 0) + _ring(st, 2, 0)) > hyper[H_STEP_TOL]
     return y, step
 
 
 WORK_SIZE = 64
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
                   ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
     """Consume one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place.
@@ -271,8 +272,9 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     ``work`` is scratch space of WORK_SIZE floats (so the per-sample path allocates nothing).
     """
     n = int(st[O_N])
-    base = O_RING + (n % RING) * N_CH
-    st[base], st[base + 1], st[base + 2], st[base + 3], st[base + 4] = ug, x1, x3, x4, x5
+    for i in range(O_RING + RING * N_CH - 1, O_RING + N_CH - 1, -1):
+        st[i] = st[i - N_CH]
+    st[O_RING], st[O_RING + 1], st[O_RING + 2], st[O_RING + 3], st[O_RING + 4] = ug, x1, x3, x4, x5
     st[O_N] = n + 1
     lam = hyper[H_LAM]
     pmax = hyper[H_PMAX]
@@ -297,13 +299,13 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     num = 0.0
     den = 0.0
     for j in range(-SG_HALF, SG_HALF + 1):
-        num += j * _ring(st, n, SG_HALF - j, 1)
+        num += j * _ring(st, SG_HALF - j, 1)
         den += j * j
     v = num / (den * hyper[H_H])
-    c1 = _ring(st, n, SG_HALF, 1)
-    c3 = _ring(st, n, SG_HALF, 2)
-    c4 = _ring(st, n, SG_HALF, 3)
-    c5 = _ring(st, n, SG_HALF, 4)
+    c1 = _ring(st, SG_HALF, 1)
+    c3 = _ring(st, SG_HALF, 2)
+    c4 = _ring(st, SG_HALF, 3)
+    c5 = _ring(st, SG_HALF, 4)
     a1, a2 = rc[C_A1], rc[C_A2]
     q1 = a1 * c3 - a2 * c4 - rc[C_FL]
     sg = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
@@ -377,7 +379,7 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
         _residual_stats(st, 2, yv - _dot(phi, th), lam2)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def fleet_step(states: np.ndarray, consts: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
                rig: np.ndarray, samples: np.ndarray) -> None:
     """Consume a batch of samples in arrival order: sample i (ug, x1, x3, x4, x5) belongs to rig[i]."""

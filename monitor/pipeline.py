@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from hydromon.contract import GRADES, PARAM_NAMES
 from plant_sim.params import RigConfig
@@ -61,7 +61,7 @@ class Assessment:
         return {k: (GRADES[v] if v >= 0 else "unknown") for k, v in self.param_levels.items()}
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def assess_rig(st, hyper, g_f, g_c, min_rows, p, s):
     """Estimates of one rig; an equation with fewer than min_rows rows has its parameters'
     standard errors set to inf (not gradable). Converged once the chamber and valve equations
@@ -76,60 +76,96 @@ def assess_rig(st, hyper, g_f, g_c, min_rows, p, s):
     return st[O_ROWS + 1] >= min_rows and st[O_ROWS + 2] >= min_rows
 
 
-@njit(cache=True)
-def _rig_samples(r, order, lo, hi, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows,
-                 eval_every, index, sign, edges, margins, z, samples, ev_rig, ev_sample, ev_count, ev_level,
-                 ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot, work, p, s, conv):
-    """Samples order[lo:hi] (all of rig r, in arrival order); events from ``slot`` on. Returns the next slot.
+@njit(cache=True, error_model="numpy")
+def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sign, edges, margins, z,
+              ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot,
+              p, s, conv):
+    """Read out and grade rig r after batch sample i into event ``slot``.
 
-    ``work`` (WORK_SIZE,), ``p``, ``s`` (1, 11) and ``conv`` (1,) are the caller's scratch space.
+    Kept out of the per-sample loop: it runs once per eval_every samples, and a call with this
+    many arguments costs more than a sample's identification when made on every sample.
+    ``p``, ``s`` (1, 11) and ``conv`` (1,) are the caller's scratch space.
     """
-    st = states[r]
-    rc = consts[r]
+    conv[0] = assess_rig(states[r], hyper, g_f, g_c, min_rows, p[0], s[0])
+    level, grades, confidence = grade_kernel(p, s, conv, index, sign, edges, margins, z, bands[r:r + 1])
+    ev_rig[slot] = r
+    ev_sample[slot] = i
+    ev_count[slot] = counts[r]
+    ev_level[slot] = level[0]
+    ev_conf[slot] = confidence[0]
+    ev_params[slot] = p[0]
+    ev_se[slot] = s[0]
+    ev_grades[slot] = grades[0]
+    ev_conv[slot] = conv[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _run(order, lo, hi, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
+         index, sign, edges, margins, z, rig, samples,
+         ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot):
+    """Samples order[lo:hi] of the batch, in that order; events from ``slot`` on. Returns the next slot."""
+    work, p, s, conv = _scratch(ev_params.shape[1])
     for q in range(lo, hi):
         i = order[q]
-        identify_step(st, rc, hyper, m_f, m_c, samples[i, 0], samples[i, 1], samples[i, 2],
+        r = rig[i]
+        identify_step(states[r], consts[r], hyper, m_f, m_c, samples[i, 0], samples[i, 1], samples[i, 2],
                       samples[i, 3], samples[i, 4], work)
         counts[r] += 1
-        if counts[r] % eval_every != 0:
-            continue
-        conv[0] = assess_rig(st, hyper, g_f, g_c, min_rows, p[0], s[0])
-        level, grades, confidence = grade_kernel(p, s, conv, index, sign, edges, margins, z,
-                                                 bands[r:r + 1])
-        ev_rig[slot] = r
-        ev_sample[slot] = i
-        ev_count[slot] = counts[r]
-        ev_level[slot] = level[0]
-        ev_conf[slot] = confidence[0]
-        ev_params[slot] = p[0]
-        ev_se[slot] = s[0]
-        ev_grades[slot] = grades[0]
-        ev_conv[slot] = conv[0]
-        slot += 1
+        if counts[r] % eval_every == 0:
+            _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sign, edges, margins, z,
+                      ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
+                      slot, p, s, conv)
+            slot += 1
     return slot
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
                   index, sign, edges, margins, z, rig, samples,
                   ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv):
-    """Identify a batch of samples in arrival order; evaluate and grade rigs at their evaluation points.
+    """Identify a batch of samples in arrival order; evaluate and grade rigs at their evaluation points
+    (every eval_every samples of a rig, counted on that rig's samples, so results never depend on
+    how arrivals were batched).
 
     Returns the number of evaluation events written into the ``ev_*`` arrays (sized by the
     caller to len(samples) // eval_every + number of rigs).
     """
-    order = np.arange(rig.shape[0])
-    work, p, s, conv = _scratch(ev_params.shape[1])
-    n_ev = 0
-    for i in range(rig.shape[0]):
-        n_ev = _rig_samples(rig[i], order, i, i + 1, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c,
-                            min_rows, eval_every, index, sign, edges, margins, z, samples, ev_rig, ev_sample,
-                            ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, n_ev,
-                            work, p, s, conv)
-    return n_ev
+    return _run(np.arange(rig.shape[0]), 0, rig.shape[0], states, consts, counts, bands, hyper, m_f, m_c,
+                g_f, g_c, min_rows, eval_every, index, sign, edges, margins, z, rig, samples,
+                ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, 0)
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True, error_model="numpy")
+def pipeline_step_parts(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
+                        index, sign, edges, margins, z, rig, samples,
+                        ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
+                        n_parts, part_cap, n_ev):
+    """``pipeline_step`` on ``n_parts`` threads: part t takes the rigs r with r % n_parts == t, in
+    arrival order, so every rig sees exactly the serial sequence of updates (same numbers).
+
+    Part t writes its events from slot t * part_cap on and their count into n_ev[t].
+    """
+    m = rig.shape[0]
+    start = np.zeros(n_parts + 1, np.int64)
+    for i in range(m):
+        start[rig[i] % n_parts + 1] += 1
+    for t in range(n_parts):
+        start[t + 1] += start[t]
+    order = np.empty(m, np.int64)
+    fill = start[:-1].copy()
+    for i in range(m):
+        t = rig[i] % n_parts
+        order[fill[t]] = i
+        fill[t] += 1
+    for t in prange(n_parts):
+        end = _run(order, start[t], start[t + 1], states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c,
+                   min_rows, eval_every, index, sign, edges, margins, z, rig, samples,
+                   ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
+                   t * part_cap)
+        n_ev[t] = end - t * part_cap
+
+
+@njit(cache=True, error_model="numpy")
 def _scratch(n_params):
     return (np.empty(WORK_SIZE), np.empty((1, n_params)), np.empty((1, n_params)),
             np.zeros(1, dtype=np.bool_))
@@ -176,13 +212,22 @@ class Fleet:
         Evaluate and grade a rig every this many of its samples.
     grade_z, grade_margin : float
         Grading's SE gate [standard errors] and hysteresis margin [fraction].
+    threads : int
+        Worker threads for large batches (rigs split between them; every rig still sees its
+        samples in order, so the numbers do not depend on it). 1 = the caller's thread only.
     """
+
+    #: batches smaller than this run on the caller's thread (a parallel region costs ~10 us)
+    PARALLEL_MIN = 256
 
     def __init__(self, options: IdentOptions | None = None, ranges: Ranges | None = None,
                  sample_rate: float = 100.0, eval_every: int = 10, grade_z: float = 3.0,
-                 grade_margin: float = 0.02, capacity: int = 16):
+                 grade_margin: float = 0.02, capacity: int = 16, threads: int = 1):
         if eval_every < 1:
             raise ValueError(f"eval_every must be >= 1, got {eval_every}")
+        if threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
+        self.threads = int(threads)
         self.options = options or IdentOptions()
         self.ranges = ranges or Ranges.default()
         self.sample_rate = float(sample_rate)
@@ -274,12 +319,27 @@ class Fleet:
         elif m and (rig.min() < 0 or rig.max() >= len(self.ids)):
             raise ValueError("rig index out of range")
         cap = m // self.eval_every + len(self.ids) + 1
+        if self.threads > 1 and m >= self.PARALLEL_MIN:
+            return self._update_parallel(rig, samples, cap)
         if cap > self._ev_cap:
             self._alloc_events(cap)
         n = pipeline_step(*self._args, rig, samples, *self._ev)
         if n == 0:
             return self._no_events
         return Events(*(v[:n].copy() for v in self._ev))
+
+    def _update_parallel(self, rig: np.ndarray, samples: np.ndarray, cap: int) -> Events:
+        t = self.threads
+        if t * cap > self._ev_cap:
+            self._alloc_events(t * cap)
+        n_ev = np.zeros(t, np.int64)
+        pipeline_step_parts(*self._args, rig, samples, *self._ev, t, cap, n_ev)
+        if not n_ev.any():
+            return self._no_events
+        take = np.concatenate([np.arange(k * cap, k * cap + n_ev[k]) for k in range(t)])
+        # each part's events are in arrival order; merge them into the serial path's order
+        take = take[np.argsort(self._ev[1][take], kind="stable")]
+        return Events(*(v[take] for v in self._ev))
 
     def _alloc_events(self, cap: int) -> None:
         # reused between calls: a sample's call allocates nothing until it has events to return

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _finite_row(phi: np.ndarray, y: float) -> bool:
     if not math.isfinite(y):
         return False
@@ -34,7 +34,7 @@ def _finite_row(phi: np.ndarray, y: float) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _forget(P: np.ndarray, lam: float, p_max: float) -> None:
     n = P.shape[0]
     tr = 0.0
@@ -47,7 +47,7 @@ def _forget(P: np.ndarray, lam: float, p_max: float) -> None:
                 P[i, j] *= inv
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rls_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float,
                w: np.ndarray) -> float:
     """One RLS update (in place). Returns the a-priori residual y - phi' theta (NaN if refused).
@@ -94,13 +94,13 @@ def rls_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam:
     return e
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rls_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float) -> float:
     """``rls_update`` with its own scratch space (for callers off the hot path)."""
     return rls_update(theta, P, phi, y, lam, p_max, np.empty(theta.shape[0]))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def riv_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray, y: float, lam: float,
                p_max: float, w: np.ndarray) -> float:
     """One recursive-IV update with instrument z (in place); scratch w (>= 2 n). Returns the residual."""

@@ -51,7 +51,7 @@ def svf_matrices(a: float, h: float) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def svf_init(m: np.ndarray, x: np.ndarray, u0: float) -> None:
     """Set the filter state ``x`` (3,) to the steady state of a constant input u0."""
     # steady state of x = Ad x + Bd u: solve (I - Ad) x = Bd u by hand (3x3, Cramer-free Gauss)
@@ -76,7 +76,7 @@ def svf_init(m: np.ndarray, x: np.ndarray, u0: float) -> None:
         x[i] = a[i, 3] / a[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def svf_step(m: np.ndarray, x: np.ndarray, u: float, y: np.ndarray) -> None:
     """Filter one sample u: write outputs [F u, sF u, s^2F u] into y (3,), advance state x (3,)."""
     for i in range(3):

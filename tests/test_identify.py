@@ -119,14 +119,15 @@ def test_table4_groups_graded_as_the_paper(noise):
     assert not wrong, wrong
 
 
-def test_fleet_equals_single_rig_path():
+@pytest.mark.parametrize("threads", [1, 3])
+def test_fleet_equals_single_rig_path(threads):
     runs = simulate_fleet(RigConfig(), [table4_group(g) for g in (1, 4, 5)], [PaperVariable()] * 3, 6.0,
                           noise=noise_model("realistic"), seeds=[1, 2, 3])
     singles = []
     for run in runs:
         ev, a = Pipeline().run(run.samples)
         singles.append((ev, a))
-    fleet = Fleet()
+    fleet = Fleet(threads=threads)  # batches of >= Fleet.PARALLEL_MIN samples split rigs over threads
     for i in range(3):
         fleet.add_rig(f"r{i}")
     n = len(runs[0].samples)
@@ -143,6 +144,9 @@ def test_fleet_equals_single_rig_path():
         assert fa.level == sa.level
         levels = np.concatenate([e.level[e.rig == i] for e in events])
         assert np.array_equal(levels, singles[i][0].level)
+    # events come in arrival order whatever the threads
+    for e, (a, b) in zip(events, zip(cuts, cuts[1:])):
+        assert np.all(np.diff(e.sample) > 0) and np.all(e.rig == rig[a:b][e.sample])
 
 
 def test_state_pickles_and_resumes():
