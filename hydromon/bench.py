@@ -643,6 +643,9 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     per_rig = sum(1 for k in range(k_lo, k_hi) if (k + 1) % eval_every == 0)
     expected = per_rig * n_rigs
     lat_ms = np.array(lat) * 1e3
+    # the first rig's samples at the probe: how much of the latency is the sim and the transport
+    s_lat_ms = np.array([t - (t0 + orjson.loads(p)["seq"] * h) for t, p in samples
+                         if lo <= t0 + orjson.loads(p)["seq"] * h < hi]) * 1e3
     m = _MON_SUMMARY.search(mon_text)
     sm = _SIM_SUMMARY.search(sim_text)
     lost = None if m is None else int(m.group(5)) + int(m.group(7))
@@ -658,6 +661,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         "p50_ms": float(np.percentile(lat_ms, 50)) if len(lat_ms) else None,
         "p99_ms": float(np.percentile(lat_ms, 99)) if len(lat_ms) else None,
         "max_ms": float(lat_ms.max()) if len(lat_ms) else None,
+        "sample_p50_ms": float(np.percentile(s_lat_ms, 50)) if len(s_lat_ms) else None,
+        "sample_p99_ms": float(np.percentile(s_lat_ms, 99)) if len(s_lat_ms) else None,
         "cpu_sim": (cpu1[0] - cpu0[0]) / wall,
         "cpu_monitor": (cpu1[1] - cpu0[1]) / wall,
         "cpu_probe": (cpu1[2] - cpu0[2]) / wall,

@@ -253,26 +253,27 @@ class MonitorCore:
         self._graded = self.fleet.graded
         self._health_keys: dict[str, str] = {}
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
+        self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
         self._clear()
 
     # -- batch of accepted samples --------------------------------------------------------
     def _clear(self) -> None:
         self._b_rows: list[int] = []
-        self._b_vals: list[tuple] = []
-        self._b_seq: list[int] = []
-        self._b_t: list[float] = []
-        self._b_status: list[str | None] = []  # status if this sample ends an evaluation window
+        self._b_vals: list[tuple] = []  # (seq, t, ug, x1, x3, x4, x5) per accepted sample
+        self._b_status: dict[int, str] = {}  # batch index -> status, where a window ends abnormally
 
     def _flush(self, out: list) -> None:
         if not self._b_rows:
             return
         rows = np.array(self._b_rows, dtype=np.int64)
-        ev = self.fleet.update(rows, np.array(self._b_vals, dtype=np.float64))
+        vals = self._b_vals
+        ev = self.fleet.update(rows, np.array(vals, dtype=np.float64)[:, 2:])
         ids = self.fleet.ids
+        status = self._b_status
         for j in range(len(ev)):
             i = int(ev.sample[j])
             rig_id = ids[int(ev.rig[j])]
-            payload = self._health_payload(j, ev, self._b_seq[i], self._b_t[i], self._b_status[i])
+            payload = self._health_payload(j, ev, vals[i][0], vals[i][1], status.get(i))
             self.latest[rig_id] = payload
             out.append((self._health_keys[rig_id], payload))
         self.counters.health += len(ev)
@@ -345,9 +346,22 @@ class MonitorCore:
                 self._early_bad.add(rig_id)
             return
         rig = self._rig(rig_id)
+        self._known[key] = rig
         if rig_id in self._early_bad:
             self._early_bad.discard(rig_id)
             rig.bad_input = True
+        self._take(rig, vals, out)
+
+    def _on_known_sample(self, rig: _Rig, key: str, payload: bytes, out: list) -> None:
+        try:
+            vals = parse_sample(decode_json(payload))
+        except Rejected as exc:
+            self._reject(exc.reason, key, exc.detail, rig)
+            return
+        self._take(rig, vals, out)
+
+    def _take(self, rig: _Rig, vals: tuple, out: list) -> None:
+        """Sequence checks of a valid sample of a known rig, then into the batch."""
         seq = vals[0]
         if rig.last_seq >= 0 and seq <= rig.last_seq:
             if seq == 0 and rig.last_seq > 0:  # the rig restarted (or a replay looped): start afresh
@@ -381,18 +395,22 @@ class MonitorCore:
             if rig.since_gap >= self.stale_samples:
                 rig.since_gap = -1
             rig.bad_input = False
+        if status is not None:
+            self._b_status[len(self._b_rows)] = status
         self._b_rows.append(rig.row)
-        self._b_vals.append(vals[2:])
-        self._b_seq.append(seq)
-        self._b_t.append(vals[1])
-        self._b_status.append(status)
+        self._b_vals.append(vals)
 
     def process(self, messages: Iterable[tuple[str, bytes]]) -> list[tuple[str, bytes]]:
         """Consume messages ``(key, payload bytes)`` in order; return the health messages
         ``(key, JSON bytes)`` they produce, in order. Never raises on bad input."""
         out: list[tuple[str, bytes]] = []
         prefix = self._prefix
+        known = self._known
         for key, payload in messages:
+            rig = known.get(key)
+            if rig is not None:  # the sample key of a rig seen before: validated then
+                self._on_known_sample(rig, key, payload, out)
+                continue
             if not key.startswith(prefix):
                 self._reject("bad-key", key, f"not under {prefix}")
                 continue

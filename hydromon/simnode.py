@@ -184,7 +184,6 @@ class SimNode:
                 for i in sorted(changed):  # read before the worker may change the fleet again
                     publish_config(i)
                 future = submit()
-                rows = blk.samples.tolist()
                 for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
                     if self.rate > 0:
                         wait = wait_time(clock(), t_start, seq - k_first, h, self.rate)
@@ -192,8 +191,10 @@ class SimNode:
                             break
                         late = clock() - sample_deadline(t_start, seq - k_first, h, self.rate)
                         stats.max_late = max(stats.max_late, late)
-                    for r, pub in enumerate(sample_pubs):
-                        pub.put(_sample_payload(seq, t, rows[r][j]))
+                    # one tick's rows at a time: converting the whole block at its start held
+                    # the first tick back by ~10 ms at 500 rigs
+                    for pub, row in zip(sample_pubs, blk.samples[:, j].tolist()):
+                        pub.put(_sample_payload(seq, t, row))
                     stats.samples += 1
                     stats.published += len(sample_pubs)
             if future is not None:
