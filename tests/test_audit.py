@@ -1,7 +1,7 @@
 """Model audit: hidden effects must be named, clean records must give "none".
 
 The hidden-effect cases are seeded; their magnitudes are "moderate" as defined in
-``hidden_case`` (documented there). The 40-case sweep is marked slow.
+``hidden_case`` (documented there). The 40-case sweep runs in CI; the 40 clean records are slow.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ DURATION = 30.0  # [s]
 def hidden_case(seed: int, name: str | None = None, noise: str = "realistic"):
     """A seeded record with one hidden effect (or none).
 
-    Random: the effect (unless given), severity in [0, 0.8) (below the fault band, where the
-    leakage makes the piston crawl), the profile, and u in [0, 1] setting the magnitude:
+    Random: the effect (unless given), the health severity in [0, 1) (all five bands), the
+    profile, and u in [0, 1] setting the magnitude:
     Stribeck peak 150..450 N at v_s 5..20 mm/s; spool stop at 70..100 % of the 95th
     percentile of the unsaturated |x5| (so the stop acts on at least 5 % of the samples; a
     stop only a rare spike reaches is not an effect the record shows); overlap 15..45 um;
@@ -41,7 +41,7 @@ def hidden_case(seed: int, name: str | None = None, noise: str = "realistic"):
     rng = np.random.default_rng(seed)
     if name is None:
         name = CASE_NAMES[int(rng.integers(len(CASE_NAMES)))]
-    severity = float(rng.uniform(0.0, 0.8))
+    severity = float(rng.uniform(0.0, 1.0))
     profile = parse_profile(PROFILES[int(rng.integers(len(PROFILES)))])
     u = float(rng.uniform())
     params = degrade(severity)
@@ -184,16 +184,6 @@ def _sweep(seeds):
     return hits, none_named, gains, rows
 
 
-def test_hidden_effects_small_sweep():
-    """8 seeded random cases (default CI smoke): at most one miss, no clean record named.
-
-    The issue's bar (90 % over 40 cases) is the slow test below; 90 % of 8 would demand 8/8,
-    which a detector that is right 90 % of the time fails 57 % of the time."""
-    hits, none_named, gains, rows = _sweep(range(1000, 1008))
-    assert none_named == 0, rows
-    assert hits >= 7, rows
-
-
 @pytest.mark.slow
 def test_clean_records_sweep_40():
     """No clean record (random severity and profile) is named as an effect."""
@@ -206,8 +196,9 @@ def test_clean_records_sweep_40():
     assert not named, named
 
 
-@pytest.mark.slow
 def test_hidden_effects_sweep_40():
+    """The issue's bar, in CI: 40 seeded hidden cases, >= 90 % named right, no clean record
+    named, median free-run gain of the named effects >= 50 % (about 3 min on 2 cores)."""
     hits, none_named, gains, rows = _sweep(range(2000, 2040))
     assert none_named == 0, rows
     assert hits >= 0.9 * 40, rows
