@@ -9,10 +9,11 @@ fleet of one; both run the same kernels, and a test pins them equal.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from hydromon.contract import GRADES, PARAM_NAMES
 from plant_sim.params import RigConfig
@@ -99,7 +100,11 @@ def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sig
     ev_conv[slot] = conv[0]
 
 
-@njit(cache=True, error_model="numpy")
+# nogil: Fleet's worker threads call it directly. Threads, not numba's prange: every view a
+# kernel takes of a shared array counts references on that array's one meminfo, and two cores
+# bumping one counter ~40 times a sample serialised a prange version (1.15x on 2 cores); each
+# Python thread's call unboxes the arrays with its own meminfo.
+@njit(cache=True, nogil=True, error_model="numpy")
 def _run(order, lo, hi, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
          index, sign, edges, margins, z, rig, samples,
          ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot):
@@ -135,16 +140,10 @@ def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_
                 ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, 0)
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def pipeline_step_parts(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
-                        index, sign, edges, margins, z, rig, samples,
-                        ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
-                        n_parts, part_cap, n_ev):
-    """``pipeline_step`` on ``n_parts`` threads: part t takes the rigs r with r % n_parts == t, in
-    arrival order, so every rig sees exactly the serial sequence of updates (same numbers).
-
-    Part t writes its events from slot t * part_cap on and their count into n_ev[t].
-    """
+@njit(cache=True, error_model="numpy")
+def partition_rigs(rig, n_parts):
+    """Sample indices grouped by part (rig % n_parts), arrival order kept within a part, and
+    the parts' start offsets (n_parts + 1,)."""
     m = rig.shape[0]
     start = np.zeros(n_parts + 1, np.int64)
     for i in range(m):
@@ -157,12 +156,7 @@ def pipeline_step_parts(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c
         t = rig[i] % n_parts
         order[fill[t]] = i
         fill[t] += 1
-    for t in prange(n_parts):
-        end = _run(order, start[t], start[t + 1], states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c,
-                   min_rows, eval_every, index, sign, edges, margins, z, rig, samples,
-                   ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
-                   t * part_cap)
-        n_ev[t] = end - t * part_cap
+    return order, start
 
 
 @njit(cache=True, error_model="numpy")
@@ -228,6 +222,7 @@ class Fleet:
         if threads < 1:
             raise ValueError(f"threads must be >= 1, got {threads}")
         self.threads = int(threads)
+        self._pool: ThreadPoolExecutor | None = None
         self.options = options or IdentOptions()
         self.ranges = ranges or Ranges.default()
         self.sample_rate = float(sample_rate)
@@ -332,14 +327,27 @@ class Fleet:
         t = self.threads
         if t * cap > self._ev_cap:
             self._alloc_events(t * cap)
-        n_ev = np.zeros(t, np.int64)
-        pipeline_step_parts(*self._args, rig, samples, *self._ev, t, cap, n_ev)
-        if not n_ev.any():
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(t - 1, thread_name_prefix="fleet")
+        order, start = partition_rigs(rig, t)
+        args = self._args + (rig, samples) + self._ev
+
+        def part(k):
+            return _run(order, start[k], start[k + 1], *args, k * cap) - k * cap
+
+        futures = [self._pool.submit(part, k) for k in range(1, t)]
+        n_ev = [part(0)] + [f.result() for f in futures]
+        if not any(n_ev):
             return self._no_events
         take = np.concatenate([np.arange(k * cap, k * cap + n_ev[k]) for k in range(t)])
         # each part's events are in arrival order; merge them into the serial path's order
         take = take[np.argsort(self._ev[1][take], kind="stable")]
         return Events(*(v[take] for v in self._ev))
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_pool"] = None  # threads do not pickle; a restored fleet starts its own
+        return state
 
     def _alloc_events(self, cap: int) -> None:
         # reused between calls: a sample's call allocates nothing until it has events to return

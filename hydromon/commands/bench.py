@@ -50,7 +50,7 @@ def print_table(res, stream=None) -> None:
     t.add_row("core_single", _fmt(res.core_single), "samples/s",
               f"1 rig, batch 1 (live path); batch 100: {_fmt(cs.get('batch_100'))}/s")
     t.add_row("core_batch", _fmt(res.core_batch), "samples/s",
-              f"{d.get('core_batch', {}).get('rigs')} rigs, one sample each per update")
+              f"{d.get('core_batch', {}).get('rigs')} rigs, one sample each per update, {d.get('core_batch', {}).get('threads')} threads")
     rd = d.get("replay_direct", {})
     t.add_row("replay_direct", _fmt(res.replay_direct), "samples/s",
               f"in-memory MCAP, {rd.get('rigs')} rigs, via {rd.get('via')}; "

@@ -22,6 +22,9 @@ def add_arguments(parser) -> None:
                              "(shard a plant over several monitors; default all)")
     parser.add_argument("--eval-every", type=int, default=10, metavar="N",
                         help="a health message every N samples of a rig (default 10)")
+    parser.add_argument("--threads", type=int, default=1, metavar="N",
+                        help="threads for the estimators when many samples arrive at once (rigs split "
+                             "between them; same numbers for any N; default 1)")
     add_bus_arguments(parser)
 
 
@@ -30,7 +33,10 @@ def run(args) -> int:
 
     if args.duration is not None and not args.duration > 0:
         raise ValueError(f"--duration {args.duration} must be > 0 s")
-    core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog())
+    if args.threads < 1:
+        raise ValueError(f"--threads {args.threads} must be >= 1")
+    core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
+                       threads=args.threads)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
