@@ -196,13 +196,29 @@ def test_clean_records_sweep_40():
     assert not named, named
 
 
-def test_hidden_effects_sweep_40():
+@pytest.fixture(scope="module")
+def sweep_40():
+    """The issue's 40 seeded hidden cases (about 40 s), run once for the tests below."""
+    return _sweep(range(2000, 2040))
+
+
+def test_hidden_effects_sweep_40(sweep_40):
     """The issue's bar, in CI: 40 seeded hidden cases, >= 90 % named right, no clean record
-    named, median free-run gain of the named effects >= 50 % (about 3 min on 2 cores)."""
-    hits, none_named, gains, rows = _sweep(range(2000, 2040))
+    named, the median held-out free-run error reduction of the named effects >= 50 %."""
+    hits, none_named, gains, rows = sweep_40
     assert none_named == 0, rows
     assert hits >= 0.9 * 40, rows
     assert np.median(gains) >= 0.5, gains
+
+
+@pytest.mark.xfail(strict=True, reason="issue 4, not met: 4 of 38 named effects simulate worse held out "
+                                       "(3 Stribeck friction, gain -13..-21 %; 1 fault-band sensor delay "
+                                       "whose extended free run diverges)")
+def test_every_named_effect_improves_the_free_run(sweep_40):
+    """The issue also asks that every named effect's extended model simulate the held-out part
+    better than the nominal model. Strict xfail: this turns red once it passes, to be promoted."""
+    _, _, gains, _ = sweep_40
+    assert all(g > 0 for g in gains), gains
 
 
 # --- numerics of the pieces -------------------------------------------------------------
