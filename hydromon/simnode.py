@@ -28,6 +28,7 @@ import zenoh
 from hydromon.bus import JSON
 from hydromon.contract import DEFAULT_NAMESPACE, _check_ns, config_key, sample_key
 from hydromon.fleetfile import FleetSpec, RigSpec
+from hydromon.quietgc import QuietGC
 from plant_sim.live import PlantFleet
 
 __all__ = ["sample_deadline", "wait_time", "SimStats", "SimNode", "run_sim", "DEFAULT_BLOCK"]
@@ -172,6 +173,8 @@ class SimNode:
             config_pubs[i].put(payload)
             stats.configs_published += 1
 
+        quiet = QuietGC()
+        quiet.__enter__()  # left in the finally below (the loop's own try)
         try:
             for i in range(fleet.n_rigs):
                 publish_config(i)
@@ -187,8 +190,13 @@ class SimNode:
                 for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
                     if self.rate > 0:
                         wait = wait_time(clock(), t_start, seq - k_first, h, self.rate)
+                        if wait > 0.002:  # slack before this tick's deadline: collect garbage now
+                            quiet.idle()
+                            wait = wait_time(clock(), t_start, seq - k_first, h, self.rate)
                         if wait > 0 and stop.wait(wait):
                             break
+                    else:
+                        quiet.idle()
                         late = clock() - sample_deadline(t_start, seq - k_first, h, self.rate)
                         stats.max_late = max(stats.max_late, late)
                     # one tick's rows at a time: converting the whole block at its start held
@@ -200,6 +208,7 @@ class SimNode:
             if future is not None:
                 future.cancel()
         finally:
+            quiet.__exit__()
             pool.shutdown(wait=True)
             stats.wall = clock() - t_start
             queryable.undeclare()

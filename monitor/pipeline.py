@@ -9,6 +9,7 @@ fleet of one; both run the same kernels, and a test pins them equal.
 
 from __future__ import annotations
 
+import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -24,6 +25,12 @@ from .identify import WORK_SIZE, IdentOptions, Kernels, identify_step, new_state
 from .layout import O_ROWS, STATE_SIZE
 
 N_P = len(PARAM_NAMES)
+
+
+def eval_phase(rig_id: str, eval_every: int) -> int:
+    """A rig's evaluation phase in [0, eval_every): the same in every process and run (CRC-32
+    of the id), so a live monitor and a replay of its recording evaluate at the same samples."""
+    return zlib.crc32(rig_id.encode()) % eval_every
 
 
 @dataclass(frozen=True)
@@ -105,7 +112,7 @@ def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sig
 # bumping one counter ~40 times a sample serialised a prange version (1.15x on 2 cores); each
 # Python thread's call unboxes the arrays with its own meminfo.
 @njit(cache=True, nogil=True, error_model="numpy")
-def _run(order, lo, hi, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
+def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
          index, sign, edges, margins, z, rig, samples,
          ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot):
     """Samples order[lo:hi] of the batch, in that order; events from ``slot`` on. Returns the next slot."""
@@ -116,7 +123,7 @@ def _run(order, lo, hi, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c
         identify_step(states[r], consts[r], hyper, m_f, m_c, samples[i, 0], samples[i, 1], samples[i, 2],
                       samples[i, 3], samples[i, 4], work)
         counts[r] += 1
-        if counts[r] % eval_every == 0:
+        if (counts[r] + phase[r]) % eval_every == 0:
             _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sign, edges, margins, z,
                       ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
                       slot, p, s, conv)
@@ -125,7 +132,7 @@ def _run(order, lo, hi, states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c
 
 
 @njit(cache=True, error_model="numpy")
-def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
+def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
                   index, sign, edges, margins, z, rig, samples,
                   ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv):
     """Identify a batch of samples in arrival order; evaluate and grade rigs at their evaluation points
@@ -135,7 +142,7 @@ def pipeline_step(states, consts, counts, bands, hyper, m_f, m_c, g_f, g_c, min_
     Returns the number of evaluation events written into the ``ev_*`` arrays (sized by the
     caller to len(samples) // eval_every + number of rigs).
     """
-    return _run(np.arange(rig.shape[0]), 0, rig.shape[0], states, consts, counts, bands, hyper, m_f, m_c,
+    return _run(np.arange(rig.shape[0]), 0, rig.shape[0], states, consts, counts, phase, bands, hyper, m_f, m_c,
                 g_f, g_c, min_rows, eval_every, index, sign, edges, margins, z, rig, samples,
                 ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, 0)
 
@@ -206,6 +213,10 @@ class Fleet:
         Evaluate and grade a rig every this many of its samples.
     grade_z, grade_margin : float
         Grading's SE gate [standard errors] and hysteresis margin [fraction].
+    stagger : bool
+        Spread the rigs' evaluations over the eval_every samples of a window (rig ``id`` at
+        the samples where count + eval_phase(id) is a multiple of eval_every) instead of all
+        at once: a fleet's read-out and grading load is then even from sample to sample.
     threads : int
         Worker threads for large batches (rigs split between them; every rig still sees its
         samples in order, so the numbers do not depend on it). 1 = the caller's thread only.
@@ -216,12 +227,13 @@ class Fleet:
 
     def __init__(self, options: IdentOptions | None = None, ranges: Ranges | None = None,
                  sample_rate: float = 100.0, eval_every: int = 10, grade_z: float = 3.0,
-                 grade_margin: float = 0.02, capacity: int = 16, threads: int = 1):
+                 grade_margin: float = 0.02, capacity: int = 16, threads: int = 1, stagger: bool = False):
         if eval_every < 1:
             raise ValueError(f"eval_every must be >= 1, got {eval_every}")
         if threads < 1:
             raise ValueError(f"threads must be >= 1, got {threads}")
         self.threads = int(threads)
+        self.stagger = bool(stagger)
         self._pool: ThreadPoolExecutor | None = None
         self.options = options or IdentOptions()
         self.ranges = ranges or Ranges.default()
@@ -237,6 +249,7 @@ class Fleet:
         self.states = np.zeros((capacity, STATE_SIZE))
         self.consts = np.zeros((capacity, 8))
         self.counts = np.zeros(capacity, dtype=np.int64)
+        self.phase = np.zeros(capacity, dtype=np.int64)
         self.bands = np.full((capacity, len(self._ra.index)), -1, dtype=np.int64)
         self._ev_cap = 0
         self._alloc_events(16)
@@ -246,7 +259,7 @@ class Fleet:
     def _bind(self) -> None:
         """The kernel's fixed arguments (rebuilt when the state arrays are reallocated)."""
         k, ra = self._k, self._ra
-        self._args = (self.states, self.consts, self.counts, self.bands, k.hyper, k.m_f, k.m_c, k.g_f, k.g_c,
+        self._args = (self.states, self.consts, self.counts, self.phase, self.bands, k.hyper, k.m_f, k.m_c, k.g_f, k.g_c,
                       float(self.options.min_rows), self.eval_every, ra.index, ra.sign, ra.edges, ra.margins,
                       self.grade_z)
 
@@ -272,6 +285,7 @@ class Fleet:
         self.states[i] = new_state(self._k.hyper)
         self.consts[i] = rig_constants(config)
         self.counts[i] = 0
+        self.phase[i] = eval_phase(rig_id, self.eval_every) if self.stagger else 0
         self.bands[i] = -1
         return i
 
@@ -280,6 +294,7 @@ class Fleet:
         self.states = np.vstack([self.states, np.zeros_like(self.states)])[:n]
         self.consts = np.vstack([self.consts, np.zeros_like(self.consts)])[:n]
         self.counts = np.concatenate([self.counts, np.zeros_like(self.counts)])[:n]
+        self.phase = np.concatenate([self.phase, np.zeros_like(self.phase)])[:n]
         self.bands = np.vstack([self.bands, np.full_like(self.bands, -1)])[:n]
         self._bind()
 

@@ -35,6 +35,7 @@ from hydromon.fleetfile import FleetSpec, RigSpec
 from hydromon.monitornode import REJECT_REASONS, MonitorCore
 from hydromon.simnode import iter_blocks
 from plant_sim.degradation import TABLE4_PAPER_GRADES
+from helpers import health_seqs, wait_for, window_end  # noqa: F401
 
 NS = "hydro"
 SECONDS = 6.0
@@ -171,14 +172,11 @@ def _by_rig(health):
     return out
 
 
-def _wait(pred, timeout_s: float, what: str, proc=None) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not pred():
-        if proc is not None and proc.poll() is not None:
-            raise AssertionError(f"the monitor exited with {proc.returncode} while waiting for {what}")
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.02)
+def _alive(proc):
+    def check():
+        if proc.poll() is not None:
+            raise AssertionError(f"the monitor exited with {proc.returncode}")
+    return check
 
 
 _SUMMARY = re.compile(r"hydromon monitor: (\d+) rig\(s\), (\d+) samples, (\d+) health messages; rejected: (.*); "
@@ -215,8 +213,8 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
         try:
             with open_session("peer", connect=[ep]) as s:
                 sub = s.declare_subscriber(f"{NS}/rig/*/health", zenoh.handlers.FifoChannel(100_000))
-                _wait(lambda: any(r.ok is not None for r in s.liveliness().get(f"{NS}/monitor/bad-in", timeout=1.0)),
-                      180, "the monitor's liveliness token", proc)
+                wait_for(lambda: any(r.ok is not None for r in s.liveliness().get(f"{NS}/monitor/bad-in", timeout=1.0)),
+                         180, "the monitor's liveliness token", alive=_alive(proc))
                 pubs: dict[str, zenoh.Publisher] = {}
                 for key, payload in msgs:  # one session, one link: zenoh keeps this order
                     pub = pubs.get(key)
@@ -228,9 +226,10 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
                     while (m := sub.try_recv()) is not None:
                         received.append((str(m.key_expr), m.payload.to_bytes()))
                     got = _by_rig(received)
-                    return all(r in got and orjson.loads(got[r][-1])["seq"] == N - 1 for r in SPEC.ids)
+                    return all(r in got and orjson.loads(got[r][-1])["seq"] == health_seqs(r, N)[-1]
+                               for r in SPEC.ids)
 
-                _wait(drain, 180, "the last verdict of every good rig", proc)
+                wait_for(drain, 180, "the last verdict of every good rig", alive=_alive(proc))
                 assert proc.poll() is None  # still up after all of it
                 assert any(r.ok is not None for r in s.liveliness().get(f"{NS}/monitor/bad-in", timeout=5.0))
                 for pub in pubs.values():
@@ -245,7 +244,8 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
     assert summary["rejected"] == expected, log_path.read_text()[-3000:]
     assert summary["rejected"]["bad-key"] == 0  # keys outside the contract never reach the node
     assert summary["dropped_seq"] == dropped_seq
-    assert (summary["rigs"], summary["samples"], summary["health"]) == (3, 3 * N, 3 * N // 10)
+    assert (summary["rigs"], summary["samples"], summary["health"]) == \
+        (3, 3 * N, sum(len(health_seqs(r, N)) for r in SPEC.ids))
     assert (summary["gaps"], summary["missing"], summary["restarts"]) == (0, 0, 0)
 
     got = _by_rig(received)
@@ -254,7 +254,7 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
         if rig != VICTIM:
             assert got[rig] == clean[rig]  # every verdict, byte for byte
     # the victim: the clean verdicts, flagged bad-input in exactly the windows holding junk
-    windows = {(s + 1) // 10 * 10 + 9 for s in bad_after}  # junk after sample s: in the next window
+    windows = {window_end(VICTIM, s + 1) for s in bad_after}  # junk after sample s: the next window
     assert len(got[VICTIM]) == len(clean[VICTIM])
     for g, w in zip(got[VICTIM], clean[VICTIM]):
         g, w = orjson.loads(g), orjson.loads(w)

@@ -34,21 +34,12 @@ from hydromon.fleetfile import default_fleet
 from hydromon.mcap_io import read_recording, recover
 from hydromon.monitornode import run_monitor
 from hydromon.replay import replay_direct
+from helpers import health_seqs, wait_for  # noqa: F401
 
 CLI = [sys.executable, "-m", "hydromon.cli"]
 SECONDS = 30
 RATE = 10
 N = SECONDS * 100  # samples per rig
-
-
-def _wait(pred, timeout_s: float, what: str, procs=None) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not pred():
-        if procs is not None:
-            procs.check_alive()
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.05)
 
 
 class Procs:
@@ -146,16 +137,16 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
     live: list[tuple[str, bytes]] = []
     try:
         procs.start("router", "router", "--listen", ep)
-        _wait(lambda: "listening on" in procs.log("router"), 60, "the router", procs)
+        wait_for(lambda: "listening on" in procs.log("router"), 60, "the router", alive=procs.check_alive)
         procs.start("monitor", "monitor", "--node", "e2e", *bus)
         procs.start("record", "record", "--out", str(out), *bus)
         with open_session("client", connect=[ep]) as s:
             sub = s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(100_000))
             probe = s.declare_publisher("hydro/e2e-probe")  # under hydro/**: only the recorder matches it
-            _wait(lambda: probe.matching_status.matching, 180, "the recorder's subscription", procs)
+            wait_for(lambda: probe.matching_status.matching, 180, "the recorder's subscription", alive=procs.check_alive)
             probe.undeclare()
-            _wait(lambda: any(r.ok is not None for r in s.liveliness().get("hydro/monitor/e2e", timeout=1.0)),
-                  180, "the monitor's liveliness token", procs)
+            wait_for(lambda: any(r.ok is not None for r in s.liveliness().get("hydro/monitor/e2e", timeout=1.0)),
+                     180, "the monitor's liveliness token", alive=procs.check_alive)
             procs.start("sim", "sim", "--rate", str(RATE), "--duration", str(SECONDS), *bus)
 
             def drain() -> bool:
@@ -164,32 +155,34 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
                 last = {}
                 for k, p in live:
                     last[k.split("/")[2]] = p
-                return sorted(last) == sorted(truth) and all(orjson.loads(p)["seq"] == N - 1 for p in last.values())
+                return sorted(last) == sorted(truth) and all(orjson.loads(p)["seq"] == health_seqs(r, N)[-1]
+                                                             for r, p in last.items())
 
-            _wait(drain, 240, "the last health of every rig", procs)
+            wait_for(drain, 240, "the last health of every rig", alive=procs.check_alive)
             assert procs.wait("sim", 60) == 0, procs.log("sim")
         assert procs.stop("monitor") == 0, procs.log("monitor")
         # the recorder has every config, sample and verdict on disk (flushed within 0.5 s)
-        want = 5 + 5 * N + 5 * N // 10
-        _wait(lambda: _messages_on_disk(out) >= want, 60, f"{want} messages in the live recording", procs)
+        n_health = sum(len(health_seqs(r, N)) for r in truth)
+        want = 5 + 5 * N + n_health
+        wait_for(lambda: _messages_on_disk(out) >= want, 60, f"{want} messages in the live recording", alive=procs.check_alive)
         assert procs.stop("record") == 0, procs.log("record")
 
         # -- live: every verdict of every rig, in order; the final grade is the true grade
         got = _by_key(live)
         for rig, grade in truth.items():
             hs = [Health.model_validate_json(p) for p in got[f"hydro/rig/{rig}/health"]]
-            assert [h.seq for h in hs] == list(range(9, N, 10))
+            assert [h.seq for h in hs] == health_seqs(rig, N)
             assert hs[-1].t <= SECONDS and hs[-1].status == "ok"
             assert hs[-1].grade == grade, f"{rig}: {hs[-1].grade}, true grade {grade}"
         mon_log = procs.log("monitor")
-        assert (f"5 rig(s), {5 * N} samples, {5 * N // 10} health messages; rejected: none; dropped seq 0, "
+        assert (f"5 rig(s), {5 * N} samples, {n_health} health messages; rejected: none; dropped seq 0, "
                 f"gaps 0 (0 samples missing), restarts 0") in mon_log, mon_log
         assert str(out) in procs.log("record")
 
         # -- the recording: complete (it has its summary: a clean stop), the live verdicts in it
         msgs = list(read_recording(out))
         kinds = [k.rsplit("/", 1)[1] for k, _, _, _ in msgs]
-        assert (kinds.count("config"), kinds.count("sample"), kinds.count("health")) == (5, 5 * N, 5 * N // 10)
+        assert (kinds.count("config"), kinds.count("sample"), kinds.count("health")) == (5, 5 * N, n_health)
         stored = [(k, p) for k, p, _, _ in msgs if k.endswith("/health")]
         assert _by_key(stored) == got
 
@@ -208,13 +201,13 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
                 daemon=True)
             mon.start()
             try:
-                _wait(lambda: any(r.ok is not None for r in
+                wait_for(lambda: any(r.ok is not None for r in
                                   s.liveliness().get("hydro/monitor/e2e-replay", timeout=1.0)),
-                      60, "the replay monitor's liveliness token", procs)
+                         60, "the replay monitor's liveliness token", alive=procs.check_alive)
                 procs.start("replay", "replay", str(out), "--rate", "0", "--quiet", "--wait", "60",
                             "--keys", "hydro/rig/*/sample", "--keys", "hydro/rig/*/config", *bus)
                 assert procs.wait("replay", 120) == 0, procs.log("replay")
-                _wait(lambda: len(replayed) >= len(stored), 60, f"{len(stored)} verdicts of the bus replay")
+                wait_for(lambda: len(replayed) >= len(stored), 60, f"{len(stored)} verdicts of the bus replay")
             finally:
                 stop.set()
                 mon.join(30)

@@ -24,6 +24,8 @@ from hydromon.goldens import (GOLDENS, RECORDINGS_DIR, Golden, make_golden, read
                               true_grades)
 from hydromon.mcap_io import read_recording
 from hydromon.replay import health_jsonl, replay_direct
+from helpers import health_seqs
+from monitor.pipeline import eval_phase
 
 REGENERATE = ("if the monitor's numerics changed on purpose, run `python -m hydromon.goldens --update` "
               "and commit recordings/")
@@ -95,15 +97,20 @@ def test_every_rig_ends_at_its_true_grade_and_the_input_was_whole(golden):
 
 def test_gap_and_restart_show_in_the_health():
     (g,) = [g for g in GOLDENS if g.name == "gap-restart"]
-    hs = [orjson.loads(p) for _, p in stored_health(_golden_files(g)[0])]
+    stored = stored_health(_golden_files(g)[0])
+    (rig,) = {k.split("/")[2] for k, _ in stored}
+    hs = [orjson.loads(p) for _, p in stored]
     seqs = [h["seq"] for h in hs]
-    # 5 s (seq 0..499), the dropout (500..549 never sent), 5 s (550..1049), a restart (0..599)
-    assert seqs == list(range(9, 500, 10)) + list(range(559, 1050, 10)) + list(range(9, 600, 10))
-    assert [h["seq"] for h in hs if h["status"] == "stale"] == [559]  # the first verdict after the gap
-    # the restarted rig starts afresh: its first 5 s give the first run's verdicts again
-    after = hs[-60:]
-    assert after[:50] == hs[:50]
-    assert hs[49]["grade"] == hs[-61]["grade"] == after[-1]["grade"] == "average"
+    # 5 s (seq 0..499), the dropout (500..549 never sent), 5 s (550..1049), a restart (0..599);
+    # windows count the rig's samples, staggered by its phase
+    ph = eval_phase(rig, 10)
+    after_gap = [q for q in range(550, 1050) if (q - 50 + 1 + ph) % 10 == 0]
+    assert seqs == health_seqs(rig, 500) + after_gap + health_seqs(rig, 600)
+    assert [h["seq"] for h in hs if h["status"] == "stale"] == after_gap[:1]  # the first verdict after the gap
+    n1 = len(health_seqs(rig, 500))
+    after = hs[-len(health_seqs(rig, 600)):]
+    assert after[:n1] == hs[:n1]
+    assert hs[n1 - 1]["grade"] == hs[-len(after) - 1]["grade"] == after[-1]["grade"] == "average"
 
 
 def test_the_recordings_directory_holds_exactly_the_goldens():

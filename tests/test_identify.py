@@ -165,3 +165,22 @@ def test_pipeline_rejects_bad_samples():
         p.update([2.0, np.nan, 1e6, 1e6, 0.0])
     with pytest.raises(ValueError, match="N, 5"):
         p.run(np.zeros((3, 4)))
+
+
+def test_staggered_fleet_evaluates_each_rig_at_its_own_phase():
+    from monitor.pipeline import eval_phase
+
+    ids = [f"rig-{i:04d}" for i in range(40)]
+    fleet = Fleet(stagger=True)
+    for rid in ids:
+        fleet.add_rig(rid)
+    run = simulate(PaperIdentification(), 0.5, noise=noise_model("realistic"), seed=3)
+    rig = np.tile(np.arange(len(ids)), len(run.samples))
+    ev = fleet.update(rig, np.repeat(run.samples, len(ids), axis=0))
+    phases = np.array([eval_phase(r, 10) for r in ids])
+    assert len(set(phases.tolist())) >= 8  # the ids spread over the window
+    assert np.all((ev.counts + phases[ev.rig]) % 10 == 0)
+    # every rig reported after each of its windows, and no tick carries them all
+    assert len(ev) == sum(len([n for n in range(1, 51) if (n + p) % 10 == 0]) for p in phases)
+    per_tick = np.bincount(ev.sample // len(ids))
+    assert per_tick.max() < len(ids) / 2

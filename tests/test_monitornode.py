@@ -18,6 +18,8 @@ from hydromon.fleetfile import FleetSpec, default_fleet
 from hydromon.monitornode import REJECT_REASONS, MonitorCore, RateLimitedLog, Rejected, parse_sample, run_monitor
 from hydromon.simnode import iter_blocks, run_sim
 from plant_sim.degradation import TABLE4_PAPER_GRADES
+from helpers import health_seqs, wait_for, window_end  # noqa: F401
+from monitor.pipeline import eval_phase
 
 NS = "hydro"
 
@@ -73,9 +75,8 @@ def test_clean_run_gives_valid_health_and_true_grades(clean_run):
     rigs = by_rig(health)
     assert sorted(rigs) == sorted(SPEC.ids)
     for rig, payloads in rigs.items():
-        assert len(payloads) == 60  # one every 10 samples
         hs = [Health.model_validate_json(p) for p in payloads]
-        assert [h.seq for h in hs] == list(range(9, 600, 10))
+        assert [h.seq for h in hs] == health_seqs(rig, 600)  # one every 10 samples, staggered by rig
         assert all(h.status in ("converging", "ok") for h in hs)
         for h in hs:
             assert (h.level is None) == (h.grade == "unknown")
@@ -196,7 +197,7 @@ def test_every_malformed_kind_is_counted_and_good_rigs_are_unaffected(clean_run)
         if rig != victim:
             assert got[rig] == want[rig]
     # the victim: the same verdicts, flagged bad-input in exactly the windows with junk
-    windows = {(s + 1) // 10 * 10 + 9 for s in bad_at}  # junk after sample s: in the next window
+    windows = {window_end(victim, s + 1) for s in bad_at}  # junk after sample s: the next window
     assert len(got[victim]) == len(want[victim])
     for g, w in zip(got[victim], want[victim]):
         g, w = orjson.loads(g), orjson.loads(w)
@@ -220,13 +221,16 @@ def test_a_gap_restarts_the_filters_and_marks_health_stale(clean_run):
         if other != rig:
             assert got[other] == want[other]
     hs = [Health.model_validate_json(p) for p in got[rig]]
-    # windows count the rig's samples, so after the gap they end at seq 424, 434, ...; the
-    # first sample after the gap is 415, the window ending at 424 holds only 9 samples after
-    # it -> stale; by 434 the rig has run 10 clean samples after it
+    # windows count the rig's samples (staggered by its phase), so after the gap they move by
+    # the 15 lost samples; the first window after the gap holds fewer than 10 samples after it
+    # -> stale; the next one is ok
+    ph = eval_phase(rig, 10)
+    before = health_seqs(rig, 400)
+    first = next(e for e in range(415, 430) if (e - 15 + 1 + ph) % 10 == 0)
     status = {h.seq: h.status for h in hs}
-    assert 409 not in status and status[399] == "ok"
-    assert status[424] == "stale" and status[434] == "ok"
-    assert [h.seq for h in hs if h.status == "stale"] == [424]
+    assert status[before[-1]] == "ok" and not any(before[-1] < q < first for q in status)
+    assert status[first] == "stale" and status[first + 10] == "ok"
+    assert [h.seq for h in hs if h.status == "stale"] == [first]
     assert hs[-1].grade == TABLE4_PAPER_GRADES[2]
 
 
@@ -239,7 +243,7 @@ def test_seq_back_to_zero_is_a_restart_and_gives_the_clean_verdicts_again(clean_
     assert run_core(dup0)[0].counters.duplicate == 1 and run_core(dup0)[0].counters.restarts == 0
     got, want = by_rig(health), by_rig(clean)
     for rig in SPEC.ids:
-        assert got[rig][30:] == want[rig]  # 30 health messages before the restart
+        assert got[rig][len(health_seqs(rig, 300)):] == want[rig]  # after the verdicts before the restart
 
 
 def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
@@ -252,9 +256,10 @@ def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
     core, health = run_core(msgs)
     assert core.counters.config_changes == 1 and core.configs[rig] == changed
     seqs = [orjson.loads(p)["seq"] for k, p in health if k == health_key(rig)]
-    # 200 samples before the change (20 verdicts), the count restarts at the change
-    assert seqs[:21] == list(range(9, 200, 10)) + [209]
-    assert [orjson.loads(p)["seq"] for k, p in health if k == health_key("table4-g2")] == list(range(9, 400, 10))
+    # 200 samples before the change, then the count restarts at the change (sample 200)
+    before = health_seqs(rig, 200)
+    assert seqs[:len(before) + 1] == before + [health_seqs(rig, 400, first=200)[0]]
+    assert [orjson.loads(p)["seq"] for k, p in health if k == health_key("table4-g2")] == health_seqs("table4-g2", 400)
 
 
 def test_health_payloads_hold_only_finite_numbers():
@@ -293,14 +298,6 @@ def test_parse_sample_accepts_exactly_what_the_contract_model_accepts(values, ex
 
 # -- on a real zenoh session on loopback --------------------------------------------------------
 
-def _wait(pred, timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not pred():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.01)
-
-
 @pytest.mark.network
 @pytest.mark.timeout(90)
 def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
@@ -316,7 +313,7 @@ def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
         mon.start()
         try:
             # the token is declared after the subscriptions: once the sim sees it, nothing is lost
-            _wait(lambda: any(r.ok is not None for r in sim_s.liveliness().get("hydro/monitor/*", timeout=1.0)),
+            wait_for(lambda: any(r.ok is not None for r in sim_s.liveliness().get("hydro/monitor/*", timeout=1.0)),
                   30, "the monitor's liveliness token")
             stats = run_sim(sim_s, SPEC, rate=0, duration=seconds)
             assert stats.samples == n
@@ -326,9 +323,9 @@ def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
                 while (m := sub.try_recv()) is not None:
                     got.setdefault(str(m.key_expr).split("/")[2], []).append(
                         Health.model_validate_json(m.payload.to_bytes()))
-                return len(got) == 5 and all(h[-1].seq == n - 1 for h in got.values())
+                return len(got) == 5 and all(h[-1].seq == health_seqs(r, n)[-1] for r, h in got.items())
 
-            _wait(drain, 60, "the last health message of every rig")
+            wait_for(drain, 60, "the last health message of every rig")
             replies = [r.ok for r in obs_s.get("hydro/rig/*/health", timeout=5.0) if r.ok is not None]
             one = [r.ok for r in obs_s.get("hydro/rig/table4-g4/health", timeout=5.0) if r.ok is not None]
         finally:
@@ -340,7 +337,7 @@ def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
     assert c.accepted == 5 * n and c.gaps == 0 and c.dropped_seq == 0 and c.rejected_total == 0
     assert c.configs == 5
     for rig, hs in got.items():
-        assert [h.seq for h in hs] == list(range(9, n, 10))  # every verdict, in order
+        assert [h.seq for h in hs] == health_seqs(rig, n)  # every verdict, in order
         assert hs[-1].status == "ok" and hs[-1].grade == TABLE4_PAPER_GRADES[int(rig[-1])]
     assert sorted(str(r.key_expr) for r in replies) == sorted(health_key(i) for i in SPEC.ids)
     for r in replies:
@@ -364,7 +361,7 @@ def test_a_monitor_started_late_asks_the_running_rigs_for_their_configs():
         try:
             time.sleep(0.5)
             mon.start()
-            _wait(lambda: len(core.configs) == 2 and core.counters.accepted > 0, 30, "the configs by query")
+            wait_for(lambda: len(core.configs) == 2 and core.counters.accepted > 0, 30, "the configs by query")
         finally:
             stop_sim.set()
             sim.join(30)
@@ -402,7 +399,7 @@ def test_monitor_command_runs_for_its_duration_and_reports_its_counts():
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
         with open_session("peer", connect=[ep]) as s:
-            _wait(lambda: any(r.ok is not None for r in s.liveliness().get("hydro/monitor/cli-mon", timeout=1.0)),
+            wait_for(lambda: any(r.ok is not None for r in s.liveliness().get("hydro/monitor/cli-mon", timeout=1.0)),
                   60, "the monitor process")
             run_sim(s, FleetSpec(rigs=SPEC.rigs[:2]), rate=0, duration=3.0)
             s.put("hydro/rig/x/sample", b"{oops")

@@ -22,6 +22,7 @@ from hydromon.mcap_io import (
     TruncatedRecording, read_recording, read_rig_config, read_samples, recover,
 )
 from hydromon.recorder import Rotation, publish_time_ns, record
+from helpers import health_seqs, wait_for, window_end  # noqa: F401
 
 NS = 1_000_000_000
 BLOCK = zenoh.CongestionControl.BLOCK  # tests must not lose samples to a full queue
@@ -115,14 +116,6 @@ def test_record_validates_its_arguments(tmp_path):
 
 
 # -- real zenoh sessions on loopback ----------------------------------------------------------
-def _wait(pred, timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not pred():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.01)
-
-
 @pytest.mark.network
 @pytest.mark.timeout(60)
 def test_record_over_a_real_zenoh_session_in_a_thread(tmp_path):
@@ -144,7 +137,7 @@ def test_record_over_a_real_zenoh_session_in_a_thread(tmp_path):
             rec_session, out, stop_event=stop, on_message=on_message)), daemon=True)
         worker.start()
         pub = pub_session.declare_publisher(sample_key("rig-7"), congestion_control=BLOCK)
-        _wait(lambda: pub.matching_status.matching, 20, "the recorder's subscription")
+        wait_for(lambda: pub.matching_status.matching, 20, "the recorder's subscription")
         pub_session.put(config_key("rig-7"), RigConfig(K_f=42.0).model_dump_json())
         for i in range(n):
             pub.put(sample_bytes(i, 100.0 + i * 0.01))
@@ -197,7 +190,7 @@ def test_sigkilled_recorder_loses_at_most_its_last_second(tmp_path):
         try:
             with open_session("peer", connect=[ep]) as session:
                 pub = session.declare_publisher(sample_key("k1"), congestion_control=BLOCK)
-                _wait(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe")
+                wait_for(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe")
                 sent_ns = []
                 start = time.monotonic()
                 i = 0
@@ -242,11 +235,11 @@ def test_sigterm_stops_the_recorder_cleanly_with_a_complete_file(tmp_path):
         try:
             with open_session("peer", connect=[ep]) as session:
                 pub = session.declare_publisher(sample_key("k2"), congestion_control=BLOCK)
-                _wait(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe")
+                wait_for(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe")
                 for i in range(50):
                     pub.put(sample_bytes(i, i * 0.01))
                 # the live file is flushed within the flush interval: all 50 become readable
-                _wait(lambda: _live_count(out) == 50, 20, "the 50 samples in the live file")
+                wait_for(lambda: _live_count(out) == 50, 20, "the 50 samples in the live file")
                 proc.send_signal(signal.SIGTERM)
                 assert proc.wait(30) == 0
         finally:

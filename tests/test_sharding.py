@@ -9,6 +9,7 @@ from hydromon.bus import free_tcp_endpoint, open_session
 from hydromon.fleetfile import default_fleet
 from hydromon.monitornode import rig_pattern, run_monitor
 from hydromon.simnode import run_sim
+from helpers import health_seqs, wait_for, window_end  # noqa: F401
 
 
 def test_rig_pattern_validation():
@@ -17,14 +18,6 @@ def test_rig_pattern_validation():
     for bad in ("**", "a/b", "bad id", "", "x" * 65):
         with pytest.raises(ValueError, match="rig pattern"):
             rig_pattern(bad)
-
-
-def _wait(pred, timeout_s, what):
-    deadline = time.monotonic() + timeout_s
-    while not pred():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.01)
 
 
 @pytest.mark.network
@@ -43,7 +36,7 @@ def test_two_monitors_split_the_rigs_between_them():
             t.start()
         try:
             for n in shards:
-                _wait(lambda n=n: any(r.ok is not None for r in sim_s.liveliness().get(
+                wait_for(lambda n=n: any(r.ok is not None for r in sim_s.liveliness().get(
                     f"hydro/monitor/shard-{n}", timeout=1.0)), 60, f"monitor {n}")
             run_sim(sim_s, spec, rate=0, duration=seconds)
             time.sleep(1.0)
