@@ -27,8 +27,10 @@ memory_per_rig
     Fleet state bytes per rig (array nbytes / capacity) and the RSS growth of 10,000 rigs,
     in a fresh process.
 transport_ceiling
-    Bare zenoh: a publisher process puts contract sample JSON as fast as it can over loopback
-    TCP to a subscriber process that only drains a FIFO channel; messages/s received.
+    The ceiling of ``live``: ``hydromon sim --rate 0`` (live's publisher and messages, 1000
+    rigs, as fast as it can) over loopback TCP to a bare subscriber process that only drains a
+    FIFO channel; messages/s received. ``raw`` in the details: the same subscriber fed by a
+    zenoh-python loop of pre-built payloads (what zenoh-python itself carries here).
 live
     ``hydromon sim --rate 1`` and ``hydromon monitor`` as separate processes, stepping up the
     rig count (:func:`bench_live`, :func:`live_step`): the largest count with no sample lost,
@@ -350,32 +352,64 @@ def _transport_pub(endpoint: str, seconds: float, n_keys: int, out) -> None:
 
 
 def bench_transport(seconds: float = 5.0, n_keys: int = 100) -> dict:
-    """messages/s a bare zenoh subscriber process drains from a publisher process (loopback TCP)."""
+    """messages/s a bare zenoh subscriber process drains from a publisher process (loopback TCP).
+
+    Two publishers, one after the other: ``hydromon sim --rigs n_keys --rate 0`` (the live
+    step's own publisher and messages, as fast as it can: the headline, the ceiling of
+    ``live``), and a raw zenoh-python loop putting pre-built sample payloads (``raw``: what
+    zenoh-python itself carries on this machine).
+    """
     from hydromon.bus import free_tcp_endpoint
 
     ctx = mp.get_context("spawn")
-    endpoint = free_tcp_endpoint()
-    ready, out_sub, out_pub = ctx.Queue(), ctx.Queue(), ctx.Queue()
-    sub = ctx.Process(target=_transport_sub, args=(endpoint, seconds, ready, out_sub), daemon=True)
-    sub.start()
-    try:
-        ready.get(timeout=60)
+
+    def measure(start_pub):
+        endpoint = free_tcp_endpoint()
+        ready, out_sub = ctx.Queue(), ctx.Queue()
+        sub = ctx.Process(target=_transport_sub, args=(endpoint, seconds, ready, out_sub), daemon=True)
+        sub.start()
+        try:
+            ready.get(timeout=60)
+            stop_pub = start_pub(endpoint)
+            try:
+                rs = out_sub.get(timeout=seconds + 180)
+            finally:
+                pub_cpu = stop_pub()
+        finally:
+            sub.join(timeout=10)
+            if sub.is_alive():
+                sub.terminate()
+        return {"messages_per_s": rs["messages"] / rs["seconds"], "messages": rs["messages"],
+                "seconds": rs["seconds"], "subscriber_cpu": rs["cpu_s"] / rs["seconds"], "publisher_cpu": pub_cpu}
+
+    def raw_pub(endpoint):
+        out_pub = ctx.Queue()
         pub = ctx.Process(target=_transport_pub, args=(endpoint, seconds, n_keys, out_pub), daemon=True)
         pub.start()
-        try:
-            rs = out_sub.get(timeout=seconds + 60)
+
+        def stop():
             rp = out_pub.get(timeout=seconds + 60)
-        finally:
             pub.join(timeout=10)
             if pub.is_alive():
                 pub.terminate()
-    finally:
-        sub.join(timeout=10)
-        if sub.is_alive():
-            sub.terminate()
-    return {"messages_per_s": rs["messages"] / rs["seconds"], "messages": rs["messages"],
-            "seconds": rs["seconds"], "subscriber_cpu": rs["cpu_s"] / rs["seconds"],
-            "publisher_cpu": rp["cpu_s"] / rp["seconds"], "keys": n_keys, "endpoint": "tcp/127.0.0.1"}
+            return rp["cpu_s"] / rp["seconds"]
+        return stop
+
+    def sim_pub(endpoint):
+        sim = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "sim", "--rigs", str(n_keys), "--rate", "0",
+                                "--connect", endpoint], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        t0, c0 = time.perf_counter(), _cpu_seconds(sim.pid)
+
+        def stop():
+            cpu = (_cpu_seconds(sim.pid) - c0) / (time.perf_counter() - t0)
+            _stop(sim)
+            return cpu
+        return stop
+
+    out = measure(sim_pub)
+    out.update(publisher="hydromon sim --rate 0", keys=n_keys, endpoint="tcp/127.0.0.1",
+               raw=measure(raw_pub) | {"publisher": "zenoh-python loop of pre-built payloads"})
+    return out
 
 
 # -- the whole run ------------------------------------------------------------------------------
@@ -482,7 +516,7 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
     mem = bench_memory(1000 if q else 10_000)
 
     _log("transport_ceiling")
-    tr = bench_transport(seconds=1.0 if q else opts.transport_seconds)
+    tr = bench_transport(seconds=1.0 if q else opts.transport_seconds, n_keys=100 if q else 1000)
     details["transport_ceiling"] = tr
 
     live = None

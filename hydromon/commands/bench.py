@@ -63,8 +63,9 @@ def print_table(res, stream=None) -> None:
               f"state arrays; RSS growth {_fmt(m['rss_bytes'])} B/rig over {m['rigs']} rigs")
     tr = d.get("transport_ceiling", {})
     t.add_row("transport_ceiling", _fmt(res.transport_ceiling), "messages/s",
-              f"bare zenoh sub, loopback tcp; cpu sub {_fmt(tr.get('subscriber_cpu'))}, "
-              f"pub {_fmt(tr.get('publisher_cpu'))} cores")
+              f"hydromon sim --rate 0 -> bare zenoh sub, loopback tcp; cpu sub {_fmt(tr.get('subscriber_cpu'))}, "
+              f"pub {_fmt(tr.get('publisher_cpu'))} cores; raw zenoh pub loop "
+              f"{_fmt(tr.get('raw', {}).get('messages_per_s'))}/s")
     live = res.live or {}
     if live.get("rigs"):
         t.add_row("live", _fmt(live.get("samples_per_s")), "samples/s",
