@@ -211,9 +211,8 @@ def test_hidden_effects_sweep_40(sweep_40):
     assert np.median(gains) >= 0.5, gains
 
 
-@pytest.mark.xfail(strict=True, reason="issue 4, not met: 4 of 38 named effects simulate worse held out "
-                                       "(3 Stribeck friction, gain -13..-21 %; 1 fault-band sensor delay "
-                                       "whose extended free run diverges)")
+@pytest.mark.xfail(strict=True, reason="issue 4, not met: 3 of 38 named effects simulate worse held out "
+                                       "(all Stribeck friction, gain -13..-21 %)")
 def test_every_named_effect_improves_the_free_run(sweep_40):
     """The issue also asks that every named effect's extended model simulate the held-out part
     better than the nominal model. Strict xfail: this turns red once it passes, to be promoted."""

@@ -305,7 +305,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                     models.append((nominal_params(pf, cfg, cfg.h), cand.effects(value * f, pf.theta)))
             best_run = None
             for p_m, e_m in models:
-                run = free_run(s, cfg, p_m, Effects(**e_m), v0=float(sig.vl[0]))
+                run = free_run(s, cfg, p_m, Effects(**e_m), v0=float(sig.vl[0]), fallback=p_nom)
                 err = _mean_nrmse(channel_scores(measured, run.measured, slice(0, split)))
                 if best_run is None or err < best_run[0]:
                     best_run = (err, run, p_m, e_m)

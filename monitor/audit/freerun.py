@@ -4,8 +4,9 @@ The identified parameters (bus names, ``hydromon.contract.PARAM_NAMES``) become 
 ``plant_sim`` plant: m, B = B_fv with f_v = 0, f_c, K_t, beta_e = 1/inv_beta_e,
 C_d W/sqrt(rho) (C_d = 0.6, rho = 880 chosen, W solved), C_ip, C_ep,
 omega_sv = sqrt(omega_sv2), zeta_sv = two_zeta_omega / (2 omega_sv),
-K_sv = K_sv_omega_sv2 / omega_sv2. Values outside the physical domain are clamped to it
-(and listed in ``FreeRun.clamped``). The run starts from the measured first sample and is
+K_sv = K_sv_omega_sv2 / omega_sv2. A value outside the physical domain (an unidentifiable
+parameter, e.g. the mass of a piston that barely moves, estimated <= 0) takes the fallback
+model's value when that one is valid, else the domain's edge (listed in ``FreeRun.clamped``). The run starts from the measured first sample and is
 driven by the measured ug (linearly interpolated inside sample periods); nothing measured
 after t_0 enters it except ug.
 """
@@ -28,13 +29,21 @@ CHANNELS = ("x1", "x3", "x4", "x5")
 _RHO, _CD = 880.0, 0.6
 
 
-def plant_from_params(params: dict) -> tuple[PlantParams, list[str]]:
-    """PlantParams from identified parameters (SI, bus names); also the names clamped."""
+def plant_from_params(params: dict, fallback: dict | None = None) -> tuple[PlantParams, list[str]]:
+    """PlantParams from identified parameters (SI, bus names); also the names clamped.
+
+    An invalid value takes ``fallback[name]`` when that is valid (the nominal model's value for
+    an extension's fit: a 1 kg floor for a mass estimated <= 0 made the free run so stiff that
+    it diverged), else the domain's floor.
+    """
     clamped = []
 
     def pos(name, value, floor):
         if not (math.isfinite(value) and value >= floor):
             clamped.append(name)
+            alt = None if fallback is None else fallback.get(name)
+            if alt is not None and math.isfinite(alt) and alt >= floor:
+                return alt
             return floor
         return value
 
@@ -74,7 +83,7 @@ class FreeRun:
 
 
 def free_run(samples: np.ndarray, config: RigConfig, params: dict, effects: Effects | None = None,
-             v0: float = 0.0, substeps: int = DEFAULT_SUBSTEPS) -> FreeRun:
+             v0: float = 0.0, substeps: int = DEFAULT_SUBSTEPS, fallback: dict | None = None) -> FreeRun:
     """Simulate the identified plant from the first measured sample, driven by the measured ug.
 
     Parameters
@@ -87,10 +96,12 @@ def free_run(samples: np.ndarray, config: RigConfig, params: dict, effects: Effe
         Model extension to simulate (default none).
     v0 : float
         Initial piston velocity [m/s].
+    fallback : dict or None
+        Parameters (bus names) replacing invalid ones, see :func:`plant_from_params`.
     """
     s = np.asarray(samples, dtype=float)
     n = len(s)
-    plant, clamped = plant_from_params(params)
+    plant, clamped = plant_from_params(params, fallback)
     eff = effects or Effects()
     vec = plant_vector(config, plant, eff)
     h = config.h
