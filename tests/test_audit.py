@@ -211,11 +211,10 @@ def test_hidden_effects_sweep_40(sweep_40):
     assert np.median(gains) >= 0.5, gains
 
 
-@pytest.mark.xfail(strict=True, reason="issue 4, not met: 3 of 38 named effects simulate worse held out "
-                                       "(all Stribeck friction, gain -13..-21 %)")
 def test_every_named_effect_improves_the_free_run(sweep_40):
-    """The issue also asks that every named effect's extended model simulate the held-out part
-    better than the nominal model. Strict xfail: this turns red once it passes, to be promoted."""
+    """Every named effect's extended model simulates the held-out part better than the nominal
+    model (the issue's criterion; Stribeck friction needs the output-error refinement of its
+    friction for that, see monitor.audit.audit._output_error)."""
     _, _, gains, _ = sweep_40
     assert all(g > 0 for g in gains), gains
 

@@ -127,6 +127,23 @@ class StribeckFriction(Candidate):
     def effects(self, value, theta):
         return {"stribeck_F_s": max(theta["force"]["F_s"], 0.0), "stribeck_v_s": self.v_s}
 
+    def free_run_variables(self, params: dict, effect: dict):
+        """The friction for an output-error refinement on the training part: f_c, B + f_v,
+        F_s, v_s (as logs). The equation-error fit cannot separate them: at these speeds the
+        record is stick-slip, the hump covers most of the motion, and f_c and B + f_v absorb
+        part of it (simulating them with the hump counts it twice). Returns (starts, to_model):
+        the fitted split of the breakaway level L = f_c + F_s, and two with most of L in the hump
+        and B + f_v doubled (what the absorption does, undone)."""
+        f_c, b_fv, f_s = max(params["f_c"], 1.0), max(params["B_fv"], 1.0), max(effect["stribeck_F_s"], 1.0)
+        level = f_c + f_s
+        starts = [np.log([f_c, b_fv, f_s, effect["stribeck_v_s"]])]
+        starts += [np.log([(1.0 - k) * level, 2.0 * b_fv, k * level, effect["stribeck_v_s"]]) for k in (0.6, 0.85)]
+
+        def to_model(x):
+            f_c, b_fv, f_s, v_s = np.exp(x).tolist()
+            return {**params, "f_c": f_c, "B_fv": b_fv}, {"stribeck_F_s": f_s, "stribeck_v_s": v_s}
+        return starts, to_model
+
 
 def _dead_band_flow(d):
     def flow(sig, cfg, x5, p1, p2, theta0):
