@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import io
 import json
+import os
+import tempfile
 
 import numpy as np
 import pytest
@@ -147,10 +149,7 @@ def test_cli_csv_roundtrip(tmp_path, capsys):
 
     _, run = hidden_case(3, "load_offset")
     path = tmp_path / "rec.csv"
-    with open(path, "w") as f:
-        f.write("t,ug,x1,x3,x4,x5\n")
-        for t, row in zip(run.t, run.samples):
-            f.write(",".join(repr(float(v)) for v in (t, *row)) + "\n")
+    write_csv(path, run)
     assert main(["audit", str(path), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["cause"] == "load_offset"
@@ -171,11 +170,28 @@ def test_cli_mcap(tmp_path, capsys):
     assert doc["cause"] == "load_offset"
 
 
+def write_csv(path, run) -> None:
+    """The record as the user's CSV (t,ug,x1,x3,x4,x5 in SI; floats written exactly)."""
+    with open(path, "w") as f:
+        f.write("t,ug,x1,x3,x4,x5\n")
+        for t, row in zip(run.t, run.samples):
+            f.write(",".join(repr(float(v)) for v in (t, *row)) + "\n")
+
+
 def _sweep(seeds):
+    """Each hidden case goes to the audit as a CSV file only, as a user's record would."""
+    from hydromon.commands.audit import load
+
     hits, none_named, gains, rows = 0, 0, [], []
-    for seed in seeds:
-        name, run = hidden_case(seed)
-        res = audit(run.samples, run.config)
+    with tempfile.TemporaryDirectory() as tmp:
+        results = []
+        for seed in seeds:
+            name, run = hidden_case(seed)
+            path = os.path.join(tmp, f"case-{seed}.csv")
+            write_csv(path, run)
+            config, samples = load(path)
+            results.append((seed, name, audit(samples, config)))
+    for seed, name, res in results:
         hits += res.cause == name
         none_named += name == "none" and res.cause != "none"
         if res.best is not None and res.cause == name:
