@@ -41,14 +41,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Callable
 
 import numpy as np
-from scipy.optimize import minimize
-from scipy.signal import cont2discrete, lfilter, savgol_filter
+from scipy.signal import savgol_filter
 
 from plant_sim.params import RigConfig
+
+from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
            "nominal_params", "BLOCKS", "orifice_factors"]
@@ -65,8 +65,6 @@ FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction a
 SG_LIGHT = 11  # [samples] window of the light smoothing of nonlinear terms' ingredients
 SG_ORDER = 3
 MARGIN = 25  # [samples] rows dropped at both ends (filter edges and x1 re-alignment)
-VALVE_OMEGA = np.geomspace(20.0, 600.0, 18)  # [rad/s] valve natural frequencies searched
-VALVE_ZETA = np.array([0.15, 0.3, 0.5, 0.7, 1.0, 1.5])  # [-] damping ratios searched
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
 
@@ -404,54 +402,6 @@ def _rest_residuals(b: Block, th_force: dict, train: np.ndarray) -> tuple[np.nda
     return _dead_zone(net, level + f_s), f_s
 
 
-@lru_cache(maxsize=4096)
-def _valve_filter(omega: float, zeta: float, h: float) -> tuple[np.ndarray, np.ndarray]:
-    # pure function of its arguments; memoised because the grid points recur in every fit
-    num, den = [omega * omega], [1.0, 2.0 * zeta * omega, omega * omega]
-    b, a, _ = cont2discrete((num, den), h, method="foh")
-    return np.ravel(b), np.ravel(a)
-
-
-def valve_response(omega: float, zeta: float, h: float, du: np.ndarray) -> np.ndarray:
-    """Unit-gain valve response [m/V * V] to du sampled with period h, first-order hold."""
-    b, a = _valve_filter(float(omega), float(zeta), float(h))
-    return lfilter(b, a, du)
-
-
-def _fit_valve(b: Block, h: float, train: np.ndarray) -> tuple[dict, np.ndarray]:
-    du = b.X[:, 0]
-    use = train & b.fit_mask
-    y = b.y
-
-    def cost(omega, zeta):
-        omega = min(max(omega, 0.5 * VALVE_OMEGA[0]), 2.0 * VALVE_OMEGA[-1])
-        zeta = min(max(zeta, 0.5 * VALVE_ZETA[0]), 2.0 * VALVE_ZETA[-1])
-        g = valve_response(omega, zeta, h, du)[b.rows]
-        gg = float(np.dot(g[use], g[use]))
-        k = float(np.dot(g[use], y[use])) / gg if gg > 0 else 0.0
-        pred = k * g
-        if math.isfinite(b.clip):
-            pred = np.clip(pred, -b.clip, b.clip)
-        r = y - pred
-        return float(np.mean(r[use] ** 2)), k, r
-
-    best = None
-    for omega in VALVE_OMEGA:
-        for zeta in VALVE_ZETA:
-            c = cost(omega, zeta)[0]
-            if best is None or c < best[0]:
-                best = (c, omega, zeta)
-    z0 = np.log([best[1], best[2]])
-    opt = minimize(lambda z: cost(*np.exp(z))[0], z0, method="Nelder-Mead",
-                   options={"xatol": 2e-3, "fatol": 1e-9 * best[0], "maxfev": 50,
-                            "initial_simplex": np.vstack([z0, z0 + [0.15, 0], z0 + [0, 0.15]])})
-    omega, zeta = (float(v) for v in np.exp(opt.x))
-    omega = min(max(omega, 0.5 * VALVE_OMEGA[0]), 2.0 * VALVE_OMEGA[-1])
-    zeta = min(max(zeta, 0.5 * VALVE_ZETA[0]), 2.0 * VALVE_ZETA[-1])
-    _, k, r = cost(omega, zeta)
-    return {"omega_sv2": omega * omega, "two_zeta_omega": 2.0 * zeta * omega, "K_sv": k}, r
-
-
 def fit_blocks(blocks: dict[str, Block], train_end: int, h: float, cache: dict | None = None) -> Fit:
     """Fit each block on its rows with sample index < train_end (and in its fit mask); the
     rest block takes the force block's parameters; the valve block is fitted by output error
@@ -482,7 +432,7 @@ def fit_blocks(blocks: dict[str, Block], train_end: int, h: float, cache: dict |
     if cache is not None and key in cache:
         theta["valve"], res["valve"] = cache[key]
     else:
-        theta["valve"], res["valve"] = _fit_valve(b, h, b.rows < train_end)
+        theta["valve"], res["valve"] = fit_valve(b, h, b.rows < train_end)
         if cache is not None:
             cache[key] = (theta["valve"], res["valve"])
     noise["valve"] = np.zeros(len(b.y))
