@@ -1,0 +1,75 @@
+"""hydromon.quietgc: automatic collection off inside the context, cycles still collected in idle(),
+nesting across threads, the collector's state restored."""
+
+from __future__ import annotations
+
+import gc
+import threading
+import weakref
+
+import pytest
+
+from hydromon.quietgc import QuietGC
+
+
+class _Node:
+    pass
+
+
+def _cycle():
+    a, b = _Node(), _Node()
+    a.other, b.other = b, a
+    return weakref.ref(a)
+
+
+def test_off_inside_restored_after_and_cycles_collected_when_due():
+    assert gc.isenabled()
+    now = [0.0]
+    with QuietGC(young_s=0.1, full_s=1.0, clock=lambda: now[0]) as q:
+        assert not gc.isenabled()
+        ref = _cycle()
+        q.idle()  # not due yet: the cycle is still there
+        assert ref() is not None and q.collections == 0
+        now[0] = 0.2
+        q.idle()  # due: the young generations are collected, and the cycle with them
+        assert ref() is None and q.collections == 1
+        now[0] = 1.5
+        q.idle()  # a full collection
+        assert q.collections == 2
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_nested_contexts_across_threads_restore_only_at_the_last_exit():
+    inner_entered, release = threading.Event(), threading.Event()
+
+    def other():
+        with QuietGC():
+            inner_entered.set()
+            release.wait(10)
+
+    with QuietGC():
+        t = threading.Thread(target=other)
+        t.start()
+        assert inner_entered.wait(10)
+    # the outer context has exited, the thread's has not: collection stays off
+    assert not gc.isenabled()
+    release.set()
+    t.join(10)
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_a_disabled_collector_stays_disabled():
+    gc.disable()
+    try:
+        with QuietGC():
+            pass
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+
+
+def test_bad_intervals_are_refused():
+    with pytest.raises(ValueError):
+        QuietGC(young_s=0.0)
+    with pytest.raises(ValueError):
+        QuietGC(young_s=2.0, full_s=1.0)
