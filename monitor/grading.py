@@ -42,137 +42,21 @@ Rules (all in :func:`grade_kernel`, which the single-rig and batched paths share
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Literal, NamedTuple
 
 import numpy as np
 from numba import njit
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
 
-from hydromon.contract import GRADES, PARAM_NAMES
+from hydromon.contract import PARAM_NAMES
+
+from .ranges import DEFAULT_RANGES_PATH, ParamRange, RangeArrays, Ranges, grade_name  # noqa: F401  (re-exported)
 
 __all__ = [
     "ParamRange", "Ranges", "RangeArrays", "grade_kernel", "GradeResult", "BatchGradeResult",
     "Grader", "BatchGrader", "grade_of_values", "grade_name", "DEFAULT_RANGES_PATH",
 ]
-
-DEFAULT_RANGES_PATH = Path(__file__).with_name("data") / "table3.json"
-
-
-def grade_name(level: int) -> str:
-    """Grade name of a level 0..4 (contract GRADES), ``"unknown"`` for -1."""
-    return GRADES[level] if 0 <= level < len(GRADES) else "unknown"
-
-
-class ParamRange(BaseModel):
-    """Bands of one graded parameter, in its SI unit.
-
-    direction : "rising" (the value grows as the rig degrades) or "falling".
-    edges : the four boundaries between the five grades, in grade order (health|sub, sub|average,
-        average|deterioration, deterioration|fault); strictly increasing if rising, strictly
-        decreasing if falling.
-    fault_threshold : instead of edges, a two-level parameter: on the healthy side of the
-        threshold grade 0, past it grade 4.
-    """
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-    direction: Literal["rising", "falling"]
-    edges: tuple[float, float, float, float] | None = None
-    fault_threshold: float | None = None
-
-    @model_validator(mode="after")
-    def _check(self) -> ParamRange:
-        if (self.edges is None) == (self.fault_threshold is None):
-            raise ValueError("give exactly one of 'edges' (4 values) or 'fault_threshold'")
-        if self.edges is not None:
-            s = 1.0 if self.direction == "rising" else -1.0
-            for a, b in zip(self.edges, self.edges[1:]):
-                if not s * (b - a) > 0:
-                    raise ValueError(f"edges {list(self.edges)} must be strictly "
-                                     f"{'increasing' if s > 0 else 'decreasing'} for a "
-                                     f"{self.direction} parameter (at {a} -> {b})")
-        return self
-
-    def edge_array(self) -> np.ndarray:
-        """The four edges in grade order [unit of the parameter]; a threshold is repeated 4x."""
-        if self.edges is not None:
-            return np.array(self.edges, dtype=np.float64)
-        return np.full(4, float(self.fault_threshold), dtype=np.float64)
-
-    def margin_array(self, margin: float) -> np.ndarray:
-        """Hysteresis margins of the four edges [unit of the parameter] for a relative margin
-        [-]: ``margin * |e_j|``, capped at half the narrower inner band next to the edge."""
-        e = self.edge_array()
-        m = margin * np.abs(e)
-        if self.edges is not None:
-            w = np.abs(np.diff(e))  # widths of the inner bands 1, 2, 3
-            m = np.minimum(m, 0.5 * np.minimum(np.r_[np.inf, w], np.r_[w, np.inf]))
-        return m
-
-
-class RangeArrays(NamedTuple):
-    """Plain arrays for :func:`grade_kernel`: graded names, their index in the estimate vector,
-    sign (+1 rising, -1 falling), edges and hysteresis margins (n_graded, 4) in grade order [SI]."""
-
-    names: tuple[str, ...]
-    index: np.ndarray
-    sign: np.ndarray
-    edges: np.ndarray
-    margins: np.ndarray
-
-
-class Ranges(BaseModel):
-    """Health ranges: one :class:`ParamRange` per graded parameter, keyed by bus name."""
-
-    model_config = ConfigDict(extra="forbid")
-    params: dict[str, ParamRange]
-    source: str = ""
-
-    @field_validator("params")
-    @classmethod
-    def _names(cls, v: dict[str, ParamRange]) -> dict[str, ParamRange]:
-        bad = [k for k in v if k not in PARAM_NAMES]
-        if bad:
-            raise ValueError(f"unknown parameter name(s) {bad}; known: {list(PARAM_NAMES)}")
-        if not v:
-            raise ValueError("ranges grade no parameter")
-        return v
-
-    @classmethod
-    def load(cls, path: str | Path) -> Ranges:
-        """Read a ranges JSON file; ValueError naming the file and the bad entry."""
-        try:
-            return cls.model_validate_json(Path(path).read_text())
-        except ValidationError as e:
-            raise ValueError(f"bad ranges file {str(path)!r}: {e}") from None
-
-    @classmethod
-    def default(cls) -> Ranges:
-        """The paper's Table 3 (``monitor/data/table3.json``)."""
-        return cls.load(DEFAULT_RANGES_PATH)
-
-    def save(self, path: str | Path) -> None:
-        """Write as JSON (readable by :meth:`load`)."""
-        Path(path).write_text(json.dumps(self.model_dump(exclude_none=True), indent=2) + "\n")
-
-    def to_arrays(self, margin: float = 0.02,
-                  param_names: tuple[str, ...] = PARAM_NAMES) -> RangeArrays:
-        """Arrays for the kernel, graded parameters in ``param_names`` order; ``margin`` is the
-        relative hysteresis margin [-] (see :meth:`ParamRange.margin_array`)."""
-        names = tuple(n for n in param_names if n in self.params)
-        missing = [n for n in self.params if n not in param_names]
-        if missing:
-            raise ValueError(f"graded parameter(s) {missing} not in the estimate vector")
-        index = np.array([param_names.index(n) for n in names], dtype=np.int64)
-        sign = np.array([1.0 if self.params[n].direction == "rising" else -1.0 for n in names])
-        edges = np.array([self.params[n].edge_array() for n in names], dtype=np.float64)
-        margins = np.array([self.params[n].margin_array(margin) for n in names], dtype=np.float64)
-        return RangeArrays(names, index, sign, edges, margins)
-
 
 @njit(cache=True, error_model="numpy")
 def _count_past(u: float, f: np.ndarray, m: np.ndarray, shift: float) -> int:
