@@ -10,7 +10,6 @@ import argparse
 
 import numpy as np
 
-from hydromon.contract import PARAM_NAMES
 from monitor.paper_recipe import identify_paper
 from monitor.pipeline import Fleet
 from plant_sim.noise import noise_model

@@ -40,7 +40,7 @@ from hydromon.contract import Health, RigConfig, Sample, valid_rig_id
 __all__ = [
     "RecordingError", "TruncatedRecording", "CorruptRecording", "RecordingWriter",
     "RecoverReport", "read_recording", "read_samples", "read_rig_config", "recover",
-    "rig_topic", "SAMPLE_COLUMNS", "LEAF_MODELS", "MAGIC",
+    "rig_topic", "opened", "SAMPLE_COLUMNS", "LEAF_MODELS", "MAGIC",
 ]
 
 log = logging.getLogger(__name__)
@@ -228,7 +228,8 @@ class RecordingWriter:
 
 # -- reading ------------------------------------------------------------------------------
 @contextlib.contextmanager
-def _opened(src):
+def opened(src):
+    """``(binary file, name)`` of a path (opened and closed here) or a stream (rewound when seekable)."""
     if isinstance(src, (str, os.PathLike)):
         with open(src, "rb") as f:
             yield f, os.fspath(src)
@@ -272,7 +273,7 @@ def read_recording(src, topics: Iterable[str] | str | None = None, start_ns: int
     elif topics is not None:
         topics = list(topics)
     stack = contextlib.ExitStack()
-    f, name = stack.enter_context(_opened(src))
+    f, name = stack.enter_context(opened(src))
     try:
         _check_complete(f, name)
     except BaseException:
@@ -347,7 +348,7 @@ def _chunked_messages(f, summary, topics, start_ns, end_ns):
 
 
 def _topics(src) -> list[str]:
-    with _opened(src) as (f, name):
+    with opened(src) as (f, name):
         _check_complete(f, name)
         try:
             summary = make_reader(f).get_summary()
@@ -407,7 +408,7 @@ def read_rig_config(src, rig: str) -> RigConfig:
     last message on its config channel). Raises ValueError if there is none."""
     if not valid_rig_id(rig):
         raise ValueError(f"rig id {rig!r} must be 1-64 chars of [A-Za-z0-9_-]")
-    with _opened(src) as (f, name):
+    with opened(src) as (f, name):
         _check_complete(f, name)
         try:
             found = [m.metadata for m in make_reader(f).iter_metadata() if m.name == f"rig_config/{rig}"]

@@ -23,9 +23,7 @@ verdicts go out on the same keys as the new ones).
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import os
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -36,7 +34,7 @@ from mcap.reader import make_reader
 
 from hydromon.bus import JSON
 from hydromon.contract import DEFAULT_NAMESPACE
-from hydromon.mcap_io import CorruptRecording, TruncatedRecording, read_recording
+from hydromon.mcap_io import CorruptRecording, TruncatedRecording, opened, read_recording
 
 __all__ = ["KeyFilter", "recording_span", "recording_topics", "iter_window", "replay_direct", "replay_bus",
            "ReplayStats", "health_jsonl"]
@@ -78,18 +76,8 @@ class KeyFilter:
         return hit
 
 
-@contextlib.contextmanager
-def _open(src):
-    if isinstance(src, (str, os.PathLike)):
-        with open(src, "rb") as f:
-            yield f, os.fspath(src)
-    else:
-        src.seek(0)
-        yield src, getattr(src, "name", "<stream>")
-
-
 def _summary(src):
-    with _open(src) as (f, name):
+    with opened(src) as (f, name):
         try:
             summary = make_reader(f).get_summary()
         except Exception as exc:  # the mcap library raises many kinds on a damaged file

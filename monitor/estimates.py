@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .identify import N_PARAMS, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F
+from .identify import THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F
 from .layout import (
     H_BC, H_H, N_LAGS, O_BC, O_NOISE, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_W,
     O_ROWS, O_TH_C, O_TH_F, O_TH_V,

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 
+import orjson
+
 from monitor.pipeline import eval_phase
 
 
@@ -33,3 +35,45 @@ def window_end(rig_id: str, s: int, eval_every: int = 10) -> int:
     while (e + 1 + ph) % eval_every:
         e += 1
     return e
+
+
+# -- malformed input ------------------------------------------------------------------------------
+
+GOOD = {"seq": 5, "t": 0.05, "ug": 0.1, "x1": 0.01, "x3": 5e6, "x4": 6e6, "x5": 1e-5}
+DROP = object()
+
+
+def sample_with(**kw) -> bytes:
+    """A contract sample payload with fields changed (``DROP`` removes one)."""
+    d = {**GOOD, **kw}
+    return orjson.dumps({k: v for k, v in d.items() if v is not DROP})
+
+
+def _token(value: str, **kw) -> bytes:
+    """A payload with a bare JSON token (NaN, Infinity, 1e400) as one field's value."""
+    field = next(iter(kw))
+    return sample_with(**{field: 0.123456}).replace(b"0.123456", value.encode())
+
+
+# (reason, payload) on a sample key: every kind of malformed sample
+BAD_SAMPLES = [
+    ("not-json", b"{not json"),
+    ("not-json", b""),
+    ("not-json", b"\xff\xfe\x00"),
+    ("missing-field", sample_with(x5=DROP)),
+    ("missing-field", sample_with(seq=DROP)),
+    ("wrong-type", sample_with(x1="0.01")),
+    ("wrong-type", sample_with(seq=3.0)),
+    ("wrong-type", sample_with(ug=True)),
+    ("wrong-type", sample_with(x3=None)),
+    ("wrong-type", b"[1, 2, 3]"),
+    ("wrong-type", b"42"),
+    ("non-finite", _token("NaN", x1=1)),
+    ("non-finite", _token("Infinity", x3=1)),
+    ("non-finite", _token("-Infinity", x4=1)),
+    ("non-finite", _token("1e400", t=1)),
+    ("non-finite", sample_with(x1="nan")),
+    ("non-finite", sample_with(ug="-inf")),
+    ("unknown-field", sample_with(z=1.0)),
+    ("bad-value", sample_with(seq=-1)),
+]

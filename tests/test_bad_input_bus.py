@@ -23,7 +23,6 @@ import re
 import signal
 import subprocess
 import sys
-import time
 
 import orjson
 import pytest
@@ -35,7 +34,7 @@ from hydromon.fleetfile import FleetSpec, RigSpec
 from hydromon.monitornode import REJECT_REASONS, MonitorCore
 from hydromon.simnode import iter_blocks
 from plant_sim.degradation import TABLE4_PAPER_GRADES
-from helpers import health_seqs, wait_for, window_end  # noqa: F401
+from helpers import BAD_SAMPLES, sample_with, health_seqs, wait_for, window_end  # noqa: F401
 
 NS = "hydro"
 SECONDS = 6.0
@@ -62,43 +61,6 @@ def good_messages() -> list[tuple[str, bytes]]:
     return msgs
 
 
-GOOD = {"seq": 5, "t": 0.05, "ug": 0.1, "x1": 0.01, "x3": 5e6, "x4": 6e6, "x5": 1e-5}
-_DROP = object()
-
-
-def _with(**kw) -> bytes:
-    d = {**GOOD, **kw}
-    return orjson.dumps({k: v for k, v in d.items() if v is not _DROP})
-
-
-def _token(value: str, **kw) -> bytes:
-    """A payload with a bare JSON token (NaN, Infinity, 1e400) as one field's value."""
-    field = next(iter(kw))
-    return _with(**{field: 0.123456}).replace(b"0.123456", value.encode())
-
-
-# (reason, payload) on a sample key: every kind of malformed sample
-BAD_SAMPLES = [
-    ("not-json", b"{not json"),
-    ("not-json", b""),
-    ("not-json", b"\xff\xfe\x00"),
-    ("missing-field", _with(x5=_DROP)),
-    ("missing-field", _with(seq=_DROP)),
-    ("wrong-type", _with(x1="0.01")),
-    ("wrong-type", _with(seq=3.0)),
-    ("wrong-type", _with(ug=True)),
-    ("wrong-type", _with(x3=None)),
-    ("wrong-type", b"[1, 2, 3]"),
-    ("wrong-type", b"42"),
-    ("non-finite", _token("NaN", x1=1)),
-    ("non-finite", _token("Infinity", x3=1)),
-    ("non-finite", _token("-Infinity", x4=1)),
-    ("non-finite", _token("1e400", t=1)),
-    ("non-finite", _with(x1="nan")),
-    ("non-finite", _with(ug="-inf")),
-    ("unknown-field", _with(z=1.0)),
-    ("bad-value", _with(seq=-1)),
-]
 # rig chunks that are valid zenoh keys (and match <ns>/rig/*/sample) but not valid rig ids
 BAD_RIG_IDS = ["a" * 65, "bad.id", "bad~id", "bad id!", "r\u00e9sum\u00e9"]
 _CFG = RigConfig().model_dump()
@@ -145,7 +107,7 @@ def mixed_messages(good):
             expected[reason] += 1
             bad_after.append(seq)
         elif i % 61 == 0:
-            msgs.append((f"{NS}/rig/{BAD_RIG_IDS[ids % len(BAD_RIG_IDS)]}/sample", _with(seq=seq)))
+            msgs.append((f"{NS}/rig/{BAD_RIG_IDS[ids % len(BAD_RIG_IDS)]}/sample", sample_with(seq=seq)))
             ids += 1
             expected["bad-rig-id"] += 1
         elif i % 71 == 0:
@@ -154,7 +116,7 @@ def mixed_messages(good):
             msgs.append((f"{NS}/rig/{rig}/config", bad))
             expected[reason] += 1
         elif i % 67 == 0:
-            msgs.append((OUTSIDE[outside % len(OUTSIDE)], _with(seq=seq)))
+            msgs.append((OUTSIDE[outside % len(OUTSIDE)], sample_with(seq=seq)))
             outside += 1
     assert junk >= len(BAD_SAMPLES) and cfg >= len(BAD_CONFIGS) and ids >= len(BAD_RIG_IDS)
     assert outside >= len(OUTSIDE) and n_dup > 3 and n_ooo > 3

@@ -18,7 +18,7 @@ from hydromon.fleetfile import FleetSpec, default_fleet
 from hydromon.monitornode import REJECT_REASONS, MonitorCore, RateLimitedLog, Rejected, parse_sample, run_monitor
 from hydromon.simnode import iter_blocks, run_sim
 from plant_sim.degradation import TABLE4_PAPER_GRADES
-from helpers import health_seqs, wait_for, window_end  # noqa: F401
+from helpers import BAD_SAMPLES, sample_with, health_seqs, wait_for, window_end  # noqa: F401
 from monitor.pipeline import eval_phase
 
 NS = "hydro"
@@ -96,37 +96,6 @@ def test_batching_does_not_change_health():
         assert run_core(CLEAN[:2000], chunk=chunk)[1] == whole
 
 
-GOOD = {"seq": 5, "t": 0.05, "ug": 0.1, "x1": 0.01, "x3": 5e6, "x4": 6e6, "x5": 1e-5}
-
-
-def _with(**kw):
-    d = {**GOOD, **kw}
-    return orjson.dumps({k: v for k, v in d.items() if v is not _DROP})
-
-
-_DROP = object()
-# (reason, payload) for a sample key; every kind of malformed payload
-BAD_SAMPLES = [
-    ("not-json", b"{not json"),
-    ("not-json", b""),
-    ("not-json", b"\xff\xfe\x00"),
-    ("missing-field", _with(x5=_DROP)),
-    ("missing-field", _with(seq=_DROP)),
-    ("wrong-type", _with(x1="0.01")),
-    ("wrong-type", _with(seq=3.0)),
-    ("wrong-type", _with(ug=True)),
-    ("wrong-type", _with(x3=None)),
-    ("wrong-type", b"[1, 2, 3]"),
-    ("wrong-type", b"42"),
-    ("non-finite", _with(x1=0.123456).replace(b"0.123456", b"NaN")),
-    ("non-finite", _with(x3=0.123456).replace(b"0.123456", b"Infinity")),
-    ("non-finite", _with(x4=0.123456).replace(b"0.123456", b"-Infinity")),
-    ("non-finite", _with(t=0.123456).replace(b"0.123456", b"1e400")),
-    ("non-finite", _with(x1="nan")),
-    ("non-finite", _with(ug="-inf")),
-    ("unknown-field", _with(z=1.0)),
-    ("bad-value", _with(seq=-1)),
-]
 BAD_KEYS = [
     ("bad-rig-id", "hydro/rig/bad.id/sample"),
     ("bad-rig-id", "hydro/rig/" + "a" * 65 + "/sample"),
