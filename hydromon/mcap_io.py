@@ -321,7 +321,10 @@ def _chunked_messages(f, summary, topics, start_ns, end_ns):
     with two struct unpacks each. Decompression and CRC checks stay the library's.
     """
     channels = summary.channels
-    wanted = None if topics is None else {cid for cid, c in channels.items() if c.topic in set(topics)}
+    wanted = None
+    if topics is not None:
+        names = set(topics)
+        wanted = {cid for cid, c in channels.items() if c.topic in names}
     lo = -1 if start_ns is None else start_ns
     hi = _U64 if end_ns is None else end_ns
     for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):

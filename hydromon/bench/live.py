@@ -8,6 +8,7 @@ import re
 import subprocess
 import sys
 import time
+from collections import Counter
 
 import numpy as np
 import orjson
@@ -114,7 +115,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         mon_text, sim_text = open(mon_log).read(), open(sim_log).read()
 
     # t0 of the sim's deadlines, from the first rig's samples
-    t0 = min(t - orjson.loads(p)["seq"] * h for t, p in samples)
+    first = [(t, orjson.loads(p)["seq"]) for t, p in samples]  # the first rig's (arrival, seq)
+    t0 = min(t - k * h for t, k in first)
     lo, hi = t0 + warm, t0 + warm + seconds
     lat = []
     for t, p in health:
@@ -123,16 +125,16 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         if lo <= dl < hi:
             lat.append(t - dl)
     k_lo, k_hi = math.ceil(warm / h - 1e-9), math.ceil((warm + seconds) / h - 1e-9)
-    # the monitor staggers the rigs' evaluations (monitor.pipeline.eval_phase)
+    # the monitor staggers the rigs' evaluations (monitor.pipeline.eval_phase): count per phase
     from hydromon.fleetfile import spread_fleet
     from monitor.pipeline import eval_phase
 
-    phases = [eval_phase(rid, eval_every) for rid in spread_fleet(n_rigs).ids]
-    expected = sum(1 for ph in phases for k in range(k_lo, k_hi) if (k + 1 + ph) % eval_every == 0)
+    phases = Counter(eval_phase(rid, eval_every) for rid in spread_fleet(n_rigs).ids)
+    expected = sum(n * sum(1 for k in range(k_lo, k_hi) if (k + 1 + ph) % eval_every == 0)
+                   for ph, n in phases.items())
     lat_ms = np.array(lat) * 1e3
     # the first rig's samples at the probe: how much of the latency is the sim and the transport
-    s_lat_ms = np.array([t - (t0 + orjson.loads(p)["seq"] * h) for t, p in samples
-                         if lo <= t0 + orjson.loads(p)["seq"] * h < hi]) * 1e3
+    s_lat_ms = np.array([t - (t0 + k * h) for t, k in first if lo <= t0 + k * h < hi]) * 1e3
     m = _MON_SUMMARY.search(mon_text)
     sm = _SIM_SUMMARY.search(sim_text)
     lost = None if m is None else int(m.group(5)) + int(m.group(7))
