@@ -15,12 +15,13 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from plant_sim.params import RigConfig
 
 __all__ = [
-    "Sample", "Health", "RigConfig", "GRADES", "STATUSES", "PARAM_NAMES",
+    "Sample", "Health", "RigConfig", "GRADES", "STATUSES", "PARAM_NAMES", "SEQ_MAX",
     "RIG_ID_RE", "valid_rig_id", "sample_key", "health_key", "config_key", "liveliness_key",
     "parse_rig_key", "DEFAULT_NAMESPACE",
 ]
 
 DEFAULT_NAMESPACE = "hydro"
+SEQ_MAX = 2**63 - 1  # seq is a signed 64-bit count (the monitor keeps it in int64 arrays)
 GRADES = ("health", "sub-health", "average", "deterioration", "fault")
 STATUSES = ("converging", "ok", "stale", "bad-input")
 PARAM_NAMES = (
@@ -84,11 +85,11 @@ class _Payload(BaseModel):
 class Sample(_Payload):
     """One sample of a rig, ``<ns>/rig/<id>/sample``.
 
-    seq counts samples per rig from 0; t is the rig clock [s]; ug [V]; x1 piston position [m];
+    seq counts samples per rig from 0 (at most 2**63 - 1); t is the rig clock [s]; ug [V]; x1 piston position [m];
     x3, x4 chamber pressures [Pa]; x5 spool position [m].
     """
 
-    seq: int = Field(ge=0)
+    seq: int = Field(ge=0, le=SEQ_MAX)
     t: float
     ug: float
     x1: float
@@ -121,7 +122,7 @@ class Health(_Payload):
     level is 0 (health) .. 4 (fault), null while the grade is unknown.
     """
 
-    seq: int = Field(ge=0)
+    seq: int = Field(ge=0, le=SEQ_MAX)
     t: float
     grade: Literal["health", "sub-health", "average", "deterioration", "fault", "unknown"]
     level: int | None = Field(None, ge=0, le=4)

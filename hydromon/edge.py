@@ -22,19 +22,26 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
+from itertools import chain
+from operator import itemgetter
 
 import orjson
 from pydantic import ValidationError
 
-from hydromon.contract import RigConfig, Sample
+from hydromon.contract import SEQ_MAX, RigConfig, Sample
 
-__all__ = ["REJECT_REASONS", "Rejected", "decode_json", "parse_sample", "parse_config"]
+__all__ = ["REJECT_REASONS", "Rejected", "decode_json", "parse_sample", "parse_config", "sim_samples"]
 
 REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-field", "wrong-type",
                   "unknown-field", "bad-value")
 _SAMPLE_FIELDS = ("seq", "t", "ug", "x1", "x3", "x4", "x5")
 _SAMPLE_FIELD_SET = frozenset(_SAMPLE_FIELDS)
 _NUM = (float, int)
+_GET = itemgetter(*_SAMPLE_FIELDS)
+_SIM_TYPES = (int, float, float, float, float, float, float)
+_SIM_TYPES_LIST = list(_SIM_TYPES)
+_SEQ = itemgetter(0)
 
 
 class Rejected(ValueError):
@@ -98,11 +105,11 @@ def parse_sample(obj) -> tuple[int, float, float, float, float, float, float]:
         seq = obj["seq"]
         t, ug, x1, x3, x4, x5 = obj["t"], obj["ug"], obj["x1"], obj["x3"], obj["x4"], obj["x5"]
         # the common case, what our sim sends: an int seq and six floats (no conversions)
-        if type(seq) is int and seq >= 0 and type(t) is float and type(ug) is float and type(x1) is float \
+        if type(seq) is int and 0 <= seq <= SEQ_MAX and type(t) is float and type(ug) is float and type(x1) is float \
                 and type(x3) is float and type(x4) is float and type(x5) is float \
                 and math.isfinite(t + ug + x1 + x3 + x4 + x5):
             return (seq, t, ug, x1, x3, x4, x5)
-        if type(seq) is int and seq >= 0:
+        if type(seq) is int and 0 <= seq <= SEQ_MAX:
             try:
                 # finite floats (orjson gives no NaN/inf) or ints; bools, str, None fail here
                 if type(t) in _NUM and type(ug) in _NUM and type(x1) in _NUM and type(x3) in _NUM and \
@@ -117,6 +124,39 @@ def parse_sample(obj) -> tuple[int, float, float, float, float, float, float]:
     except ValidationError as exc:
         raise Rejected(*_classify(exc, obj)) from None
     return (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5)  # pragma: no cover (fast path takes these)
+
+
+def _sim_sample(payload: bytes):
+    try:
+        obj = orjson.loads(payload)
+        tup = _GET(obj)
+    except (orjson.JSONDecodeError, KeyError, TypeError):
+        return None
+    if len(obj) == 7 and tuple(map(type, tup)) == _SIM_TYPES and 0 <= tup[0] <= SEQ_MAX:
+        return tup
+    return None
+
+
+def sim_samples(payloads: Sequence[bytes]) -> list:
+    """``(seq, t, ug, x1, x3, x4, x5)`` of each payload that is exactly what our sim sends (an
+    object of the seven fields, an int seq in [0, SEQ_MAX], six floats), else None for that payload:
+    :func:`parse_sample` then gives its verdict (it also takes ints, or rejects with a reason).
+
+    Built for a whole batch at once: in the common case (every payload valid) the decode and
+    every check are a few C-level passes over the batch, not Python per message. Floats need
+    no finiteness check: orjson refuses NaN, Infinity and numbers that overflow a double.
+    """
+    try:
+        objs = list(map(orjson.loads, payloads))
+        tups = list(map(_GET, objs))
+    except (orjson.JSONDecodeError, KeyError, TypeError):
+        return list(map(_sim_sample, payloads))
+    m = len(tups)
+    # every value's type in one pass, and no extra keys: all seven were found, so len 7 each
+    if list(map(type, chain.from_iterable(tups))) == _SIM_TYPES_LIST * m and sum(map(len, objs)) == 7 * m \
+            and min(map(_SEQ, tups), default=0) >= 0 and max(map(_SEQ, tups), default=0) <= SEQ_MAX:
+        return tups
+    return list(map(_sim_sample, payloads))
 
 
 def parse_config(obj) -> RigConfig:

@@ -5,6 +5,15 @@
 all give the same health for the same message sequence, and tests drive it in memory.
 Payloads are validated by ``hydromon.edge``.
 
+Two paths, one result. A batch's *regular* samples (the known sample key of a rig, a payload
+exactly as our sim sends it, seq one past the rig's last, nothing pending for the rig) are
+decoded, checked and queued together (``_regular``: a few C-level passes over the batch
+and array operations; measured at 1000 rigs live, the monitor's main thread went from 5.5
+to 4.1 us per sample). Every other message, and every message of a rig that has one in the
+batch, goes one by one through ``_one`` in arrival order. Rigs are independent, so each
+rig's health is the same as if every message had gone one by one (a property test);
+only the interleaving of different rigs' health messages in the output can differ.
+
 ``<ns>/rig/<id>/health`` keys are the monitor's own output (recordings hold them): they
 are skipped and counted as ``ignored``, not rejected.
 
@@ -29,15 +38,16 @@ was evaluated; ``level`` is null and ``grade`` ``"unknown"`` when the level is -
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from itertools import compress
+from operator import attrgetter, itemgetter
 
 import numpy as np
 import orjson
 
 from hydromon.contract import DEFAULT_NAMESPACE, GRADES, PARAM_NAMES, RigConfig, _check_ns, health_key, valid_rig_id
-from hydromon.edge import REJECT_REASONS, Rejected, decode_json, parse_config, parse_sample
+from hydromon.edge import REJECT_REASONS, Rejected, decode_json, parse_config, parse_sample, sim_samples
 from monitor.pipeline import Fleet
 
 __all__ = ["MonitorCore", "MonitorCounters"]
@@ -74,15 +84,16 @@ class MonitorCounters:
                 "restarts": self.restarts, "ignored": self.ignored, "health": self.health}
 
 
-@dataclass
+@dataclass(eq=False)  # identity: `None in rigs` must not call a field-wise __eq__ per rig
 class _Rig:
     row: int
     config: RigConfig | None
-    last_seq: int = -1
-    n: int = 0                # samples since the estimates (re)started = Fleet.counts[row]
-    since_gap: int = -1       # samples after the last gap sample; -1 = no gap pending
-    bad_input: bool = False   # a message on the sample key was rejected since the last health
-    phase: int = 0            # evaluation phase (Fleet.phase[row])
+
+
+_ROW = attrgetter("row")
+_SEQ = _KEY = itemgetter(0)
+_PAYLOAD = itemgetter(1)
+_GRADE_NAMES = GRADES + ("unknown",)  # level -1 -> "unknown"
 
 
 class MonitorCore:
@@ -125,59 +136,80 @@ class MonitorCore:
         self.latest: dict[str, bytes] = {}        # latest health payload per rig id
         self._prefix = f"{namespace}/rig/"
         self._graded = self.fleet.graded
-        self._health_keys: dict[str, str] = {}
+        self._health_keys: list[str] = []          # per row
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
         self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
+        # sequence state per row (arrays, so a batch of regular samples is checked at once)
+        self._last = np.full(16, -1, dtype=np.int64)   # last seq taken; -1 = none yet
+        self._n = np.zeros(16, dtype=np.int64)         # samples since the estimates (re)started
+        self._gap = np.full(16, -1, dtype=np.int64)    # samples after the last gap; -1 = none pending
+        self._bad = np.zeros(16, dtype=np.bool_)       # a sample-key message rejected since the last health
         self._clear()
 
     # -- batch of accepted samples --------------------------------------------------------
     def _clear(self) -> None:
-        self._b_rows: list[int] = []
-        self._b_vals: list[tuple] = []  # (seq, t, ug, x1, x3, x4, x5) per accepted sample
+        self._chunks: list[tuple[np.ndarray, np.ndarray]] = []  # (rows (m,), t..x5 (m, 6)) in order
+        self._p_rows: list[int] = []    # samples taken one by one, not yet in a chunk
+        self._p_vals: list[tuple] = []
+        self._b_seqs: list[int] = []    # seq of every sample of the batch
         self._b_status: dict[int, str] = {}  # batch index -> status, where a window ends abnormally
 
+    def _seal(self) -> None:
+        if self._p_rows:
+            self._chunks.append((np.array(self._p_rows, dtype=np.int64),
+                                 np.array(self._p_vals, dtype=np.float64)[:, 1:]))
+            self._p_rows, self._p_vals = [], []
+
     def _flush(self, out: list) -> None:
-        if not self._b_rows:
+        self._seal()
+        if not self._chunks:
             return
-        rows = np.array(self._b_rows, dtype=np.int64)
-        vals = self._b_vals
-        ev = self.fleet.update(rows, np.array(vals, dtype=np.float64)[:, 2:])
-        ids = self.fleet.ids
-        status = self._b_status
-        for j in range(len(ev)):
-            i = int(ev.sample[j])
-            rig_id = ids[int(ev.rig[j])]
-            payload = self._health_payload(j, ev, vals[i][0], vals[i][1], status.get(i))
-            self.latest[rig_id] = payload
-            out.append((self._health_keys[rig_id], payload))
-        self.counters.health += len(ev)
+        if len(self._chunks) == 1:
+            rows, vals = self._chunks[0]
+        else:
+            rows = np.concatenate([c[0] for c in self._chunks])
+            vals = np.concatenate([c[1] for c in self._chunks])
+        ev = self.fleet.update(rows, vals[:, 1:])
+        if len(ev):
+            self._health(ev, vals[:, 0], out)
         self._clear()
 
-    def _health_payload(self, j: int, ev, seq: int, t: float, status: str) -> bytes:
-        level = int(ev.level[j])
-        conv = bool(ev.converged[j])
-        if status is None:
-            status = "ok" if conv and level >= 0 else "converging"
-        conf = float(ev.confidence[j])
-        conf = min(1.0, max(0.0, conf)) if math.isfinite(conf) else 0.0
-        p, s = ev.params[j].tolist(), ev.std_errors[j].tolist()
-        return orjson.dumps({
-            "seq": seq, "t": t,
-            "grade": GRADES[level] if level >= 0 else "unknown",
-            "level": level if level >= 0 else None,
-            "confidence": conf,
-            "params": {k: v for k, v in zip(PARAM_NAMES, p) if math.isfinite(v)},
-            "param_grades": {k: (GRADES[g] if g >= 0 else "unknown")
-                             for k, g in zip(self._graded, ev.grades[j].tolist())},
-            "status": status,
-            "std_errors": {k: v for k, v in zip(PARAM_NAMES, s) if math.isfinite(v)},
-        })
+    def _health(self, ev, t: np.ndarray, out: list) -> None:
+        """Health payloads of a batch's evaluations (NaN/inf left out: JSON has none)."""
+        ids, keys, seqs, status, latest, graded = self.fleet.ids, self._health_keys, self._b_seqs, \
+            self._b_status, self.latest, self._graded
+        p, s = ev.params, ev.std_errors
+        p_fin, s_fin = np.isfinite(p).tolist(), np.isfinite(s).tolist()
+        conf = ev.confidence
+        conf = np.where(np.isfinite(conf), np.clip(conf, 0.0, 1.0), 0.0).tolist()
+        sample = ev.sample.tolist()
+        t_ev = t[ev.sample].tolist()
+        for j, (r, level, conv, pj, sj, gj) in enumerate(zip(ev.rig.tolist(), ev.level.tolist(),
+                                                             ev.converged.tolist(), p.tolist(), s.tolist(),
+                                                             ev.grades.tolist())):
+            i = sample[j]
+            st = status.get(i) if status else None
+            if st is None:
+                st = "ok" if conv and level >= 0 else "converging"
+            payload = orjson.dumps({
+                "seq": seqs[i], "t": t_ev[j],
+                "grade": _GRADE_NAMES[level],
+                "level": level if level >= 0 else None,
+                "confidence": conf[j],
+                "params": dict(zip(compress(PARAM_NAMES, p_fin[j]), compress(pj, p_fin[j]))),
+                "param_grades": dict(zip(graded, map(_GRADE_NAMES.__getitem__, gj))),
+                "status": st,
+                "std_errors": dict(zip(compress(PARAM_NAMES, s_fin[j]), compress(sj, s_fin[j]))),
+            })
+            latest[ids[r]] = payload
+            out.append((keys[r], payload))
+        self.counters.health += len(ev)
 
     # -- input ----------------------------------------------------------------------------
     def _reject(self, reason: str, key: str, detail: str, rig: _Rig | None = None) -> None:
         self.counters.rejected[reason] += 1
         if rig is not None:
-            rig.bad_input = True
+            self._bad[rig.row] = True
         if self.on_reject is not None:
             self.on_reject(reason, key, detail)
 
@@ -186,8 +218,14 @@ class MonitorCore:
         if rig is None:
             config = self.configs.get(rig_id)
             row = self.fleet.add_rig(rig_id, config)
-            rig = self.rigs[rig_id] = _Rig(row, config, phase=int(self.fleet.phase[row]))
-            self._health_keys[rig_id] = health_key(rig_id, self.namespace)
+            if row >= len(self._last):
+                grow = len(self._last)
+                self._last = np.concatenate([self._last, np.full(grow, -1, dtype=np.int64)])
+                self._n = np.concatenate([self._n, np.zeros(grow, dtype=np.int64)])
+                self._gap = np.concatenate([self._gap, np.full(grow, -1, dtype=np.int64)])
+                self._bad = np.concatenate([self._bad, np.zeros(grow, dtype=np.bool_)])
+            rig = self.rigs[rig_id] = _Rig(row, config)
+            self._health_keys.append(health_key(rig_id, self.namespace))
         return rig
 
     def _on_config(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
@@ -208,7 +246,8 @@ class MonitorCore:
             return
         self._flush(out)  # the samples before the change belong to the old constants
         self.fleet.set_config(rig.row, config)
-        rig.config, rig.n, rig.since_gap = config, 0, -1
+        rig.config = config
+        self._n[rig.row], self._gap[rig.row] = 0, -1
         self.counters.config_changes += 1
 
     def _on_sample(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
@@ -223,90 +262,155 @@ class MonitorCore:
         self._known[key] = rig
         if rig_id in self._early_bad:
             self._early_bad.discard(rig_id)
-            rig.bad_input = True
-        self._take(rig, vals, out)
+            self._bad[rig.row] = True
+        self._take(rig.row, vals, out)
 
-    def _on_known_sample(self, rig: _Rig, key: str, payload: bytes, out: list) -> None:
-        try:
-            vals = parse_sample(decode_json(payload))
-        except Rejected as exc:
-            self._reject(exc.reason, key, exc.detail, rig)
-            return
-        self._take(rig, vals, out)
-
-    def _take(self, rig: _Rig, vals: tuple, out: list) -> None:
-        """Sequence checks of a valid sample of a known rig, then into the batch."""
-        seq = vals[0]
-        if rig.last_seq >= 0 and seq <= rig.last_seq:
-            if seq == 0 and rig.last_seq > 0:  # the rig restarted (or a replay looped): start afresh
+    def _take(self, r: int, vals: tuple, out: list) -> None:
+        """Sequence checks of a valid sample of the rig in row ``r``, then into the batch."""
+        seq, last, gap = vals[0], int(self._last[r]), int(self._gap[r])
+        if last >= 0 and seq <= last:
+            if seq == 0 and last > 0:  # the rig restarted (or a replay looped): start afresh
                 self._flush(out)
-                self.fleet.reset(rig.row)
-                rig.n, rig.since_gap = 0, -1
+                self.fleet.reset(r)
+                self._n[r], gap = 0, -1
                 self.counters.restarts += 1
-            elif seq == rig.last_seq:
+            elif seq == last:
                 self.counters.duplicate += 1
                 return
             else:
                 self.counters.out_of_order += 1
                 return
-        elif rig.last_seq >= 0 and seq > rig.last_seq + 1:
+        elif last >= 0 and seq > last + 1:
             self._flush(out)  # the filters restart between the rig's old and new samples
-            self.fleet.reset_signals(rig.row)
+            self.fleet.reset_signals(r)
             self.counters.gaps += 1
-            self.counters.missing += seq - rig.last_seq - 1
-            rig.since_gap = 0
-        elif rig.since_gap >= 0:
-            rig.since_gap += 1
-        rig.last_seq = seq
-        rig.n += 1
+            self.counters.missing += seq - last - 1
+            gap = 0
+        elif gap >= 0:
+            gap += 1
+        self._last[r] = seq
+        n = self._n[r] = self._n[r] + 1
         self.counters.accepted += 1
         status = None
-        if (rig.n + rig.phase) % self.eval_every == 0:  # this sample ends an evaluation window
-            if rig.bad_input:
+        if (n + self.fleet.phase[r]) % self.eval_every == 0:  # this sample ends an evaluation window
+            if self._bad[r]:
                 status = "bad-input"
-            elif 0 <= rig.since_gap < self.stale_samples:
+            elif 0 <= gap < self.stale_samples:
                 status = "stale"
-            if rig.since_gap >= self.stale_samples:
-                rig.since_gap = -1
-            rig.bad_input = False
+            if gap >= self.stale_samples:
+                gap = -1
+            self._bad[r] = False
+        self._gap[r] = gap
         if status is not None:
-            self._b_status[len(self._b_rows)] = status
-        self._b_rows.append(rig.row)
-        self._b_vals.append(vals)
+            self._b_status[self._size()] = status
+        self._p_rows.append(r)
+        self._p_vals.append(vals)
+        self._b_seqs.append(seq)
+
+    def _size(self) -> int:
+        return len(self._b_seqs)
+
+    def _take_regular(self, rows: np.ndarray, seqs: list, tups: list) -> None:
+        """A run of samples each one past its rig's last seq, of rigs with nothing pending (no
+        gap being counted out, no bad input to report): no window of theirs ends abnormally."""
+        self._seal()
+        self._chunks.append((rows, np.array(tups, dtype=np.float64)[:, 1:]))
+        self._b_seqs.extend(seqs)
+        self._last[rows] = seqs  # in order: a rig's last assignment is its last seq
+        np.add.at(self._n, rows, 1)
+        self.counters.accepted += len(seqs)
+
+    def _regular(self, messages: list) -> list:
+        """Take the samples that need no per-message care at once; return the rest, in order.
+
+        Regular = the sample key of a known rig, a payload exactly as our sim sends it
+        (``edge.sim_samples``), seq one past the previous one of its rig, and a rig with no
+        gap or bad input pending. A rig with any other message in the batch (a config, a
+        reject, a gap, a restart) has all of its messages go one by one, in order; rigs are
+        independent, so taking the regular rigs' samples first changes no rig's sequence.
+        """
+        rigs = list(map(self._known.get, map(_KEY, messages)))
+        if None in rigs:
+            pick = [i for i, r in enumerate(rigs) if r is not None]
+            if not pick:
+                return messages
+            cand = [rigs[i] for i in pick]
+            payloads = [messages[i][1] for i in pick]
+        else:
+            pick, cand, payloads = None, rigs, list(map(_PAYLOAD, messages))
+        tups = sim_samples(payloads)
+        rows = np.fromiter(map(_ROW, cand), np.int64, len(cand))
+        slow = np.zeros(len(self._last), dtype=np.bool_)
+        if None in tups:
+            bad = [i for i, tp in enumerate(tups) if tp is None]
+            slow[rows[bad]] = True
+            tups = [tp if tp is not None else (-1,) * 7 for tp in tups]
+        seqs = np.fromiter(map(_SEQ, tups), np.int64, len(tups))
+        if pick is not None:  # a config (or health, or bad key) of a known rig: that rig goes slow
+            prefix = self._prefix
+            for i in set(range(len(messages))) - set(pick):
+                key = messages[i][0]
+                if key.startswith(prefix) and key.endswith("/config"):
+                    rig = self.rigs.get(key[len(prefix):].split("/", 1)[0])
+                    if rig is not None:
+                        slow[rig.row] = True
+        # seq one past the previous one of the same rig (in the batch, or the last taken)
+        order = np.argsort(rows, kind="stable")
+        r_s, s_s = rows[order], seqs[order]
+        first = np.ones(len(r_s), dtype=np.bool_)
+        first[1:] = r_s[1:] != r_s[:-1]
+        prev = np.empty_like(s_s)
+        prev[1:] = s_s[:-1]
+        prev[first] = self._last[r_s[first]]
+        irregular = (s_s != prev + 1) | (prev < 0)
+        slow[r_s[irregular]] = True
+        slow |= (self._gap >= 0) | self._bad
+        keep = ~slow[rows]
+        if keep.all():
+            self._take_regular(rows, seqs.tolist(), tups)
+            return [] if pick is None else [messages[i] for i in range(len(messages)) if rigs[i] is None]
+        if keep.any():
+            k = np.flatnonzero(keep)
+            self._take_regular(rows[k], seqs[k].tolist(), [tups[i] for i in k.tolist()])
+        taken = set((np.asarray(pick)[keep] if pick is not None else np.flatnonzero(keep)).tolist())
+        return [m for i, m in enumerate(messages) if i not in taken]
+
+    def _one(self, key: str, payload: bytes, out: list) -> None:
+        """One message the regular path did not take."""
+        rig = self._known.get(key)
+        if rig is not None:  # the sample key of a rig seen before: validated then
+            try:
+                vals = parse_sample(decode_json(payload))
+            except Rejected as exc:
+                self._reject(exc.reason, key, exc.detail, rig)
+                return
+            self._take(rig.row, vals, out)
+            return
+        prefix = self._prefix
+        if not key.startswith(prefix):
+            self._reject("bad-key", key, f"not under {prefix}")
+            return
+        parts = key[len(prefix):].split("/")
+        if len(parts) != 2 or parts[1] not in ("sample", "config", "health"):
+            self._reject("bad-key", key, "expected <ns>/rig/<id>/sample or config")
+            return
+        rig_id, leaf = parts
+        if leaf == "health":
+            self.counters.ignored += 1
+        elif not valid_rig_id(rig_id):
+            self._reject("bad-rig-id", key, f"{rig_id[:80]!r} is not 1-64 chars of [A-Za-z0-9_-]")
+        elif leaf == "sample":
+            self._on_sample(rig_id, key, payload, out)
+        else:
+            self._on_config(rig_id, key, payload, out)
 
     def process(self, messages: Iterable[tuple[str, bytes]]) -> list[tuple[str, bytes]]:
         """Consume messages ``(key, payload bytes)`` in order; return the health messages
-        ``(key, JSON bytes)`` they produce, in order. Never raises on bad input."""
+        ``(key, JSON bytes)`` they produce (in order per rig). Never raises on bad input."""
         out: list[tuple[str, bytes]] = []
-        prefix = self._prefix
-        known = self._known
-        for key, payload in messages:
-            rig = known.get(key)
-            if rig is not None:  # the sample key of a rig seen before: validated then
-                try:
-                    vals = parse_sample(orjson.loads(payload))
-                except (orjson.JSONDecodeError, Rejected):  # the slow path says why
-                    self._on_known_sample(rig, key, payload, out)
-                else:
-                    self._take(rig, vals, out)
-                continue
-            if not key.startswith(prefix):
-                self._reject("bad-key", key, f"not under {prefix}")
-                continue
-            parts = key[len(prefix):].split("/")
-            if len(parts) != 2 or parts[1] not in ("sample", "config", "health"):
-                self._reject("bad-key", key, "expected <ns>/rig/<id>/sample or config")
-                continue
-            rig_id, leaf = parts
-            if leaf == "health":
-                self.counters.ignored += 1
-                continue
-            if not valid_rig_id(rig_id):
-                self._reject("bad-rig-id", key, f"{rig_id[:80]!r} is not 1-64 chars of [A-Za-z0-9_-]")
-                continue
-            if leaf == "sample":
-                self._on_sample(rig_id, key, payload, out)
-            else:
-                self._on_config(rig_id, key, payload, out)
+        messages = messages if isinstance(messages, list) else list(messages)
+        if messages:
+            for key, payload in self._regular(messages):
+                self._one(key, payload, out)
         self._flush(out)
         return out

@@ -76,4 +76,5 @@ BAD_SAMPLES = [
     ("non-finite", sample_with(ug="-inf")),
     ("unknown-field", sample_with(z=1.0)),
     ("bad-value", sample_with(seq=-1)),
+    ("bad-value", sample_with(seq=2**63)),  # beyond SEQ_MAX (the monitor keeps seqs as int64)
 ]

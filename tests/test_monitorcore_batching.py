@@ -1,0 +1,128 @@
+"""MonitorCore's batch path (regular samples taken together, ``MonitorCore._regular``) against
+its per-message path, on streams with every irregularity: per rig, the health messages, the
+latest health and the counters must be the same whatever the batching."""
+
+from __future__ import annotations
+
+import orjson
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hydromon.contract import SEQ_MAX, RigConfig
+from hydromon.edge import sim_samples
+from hydromon.monitorcore import MonitorCore
+from helpers import BAD_SAMPLES
+
+RIGS = ("ra", "rb", "rc")
+CONFIGS = [orjson.dumps(RigConfig().model_dump()), orjson.dumps(RigConfig(p_s=13e6).model_dump())]
+ACTIONS = ("next",) * 12 + ("dup", "back", "gap", "restart", "bad", "ints", "config", "health", "badkey")
+
+
+def _payload(seq: int, ints: bool = False) -> bytes:
+    # values of a plant near its working point; `ints` sends t and ug as JSON integers (valid,
+    # but not what the sim sends: the per-message path takes them)
+    t = seq // 100 if ints else seq * 0.01
+    ug = 2 if ints else 2.0 + 0.5 * ((seq * 7919) % 13) / 13
+    return orjson.dumps({"seq": seq, "t": t, "ug": ug, "x1": 0.01 + 1e-4 * (seq % 17), "x3": 6e6 + 1e4 * (seq % 5),
+                         "x4": 5e6 - 1e4 * (seq % 3), "x5": 1e-5 * (1 + seq % 4)})
+
+
+def stream(draws: list[tuple[int, int, int]]) -> list[tuple[str, bytes]]:
+    """Messages from (rig, action, detail) draws: mostly the next sample of a rig."""
+    seq = dict.fromkeys(RIGS, -1)
+    out = []
+    for r, a, d in draws:
+        rig, action = RIGS[r], ACTIONS[a]
+        key = f"hydro/rig/{rig}/sample"
+        if action in ("next", "ints"):
+            seq[rig] += 1
+            out.append((key, _payload(seq[rig], ints=action == "ints")))
+        elif action == "dup" and seq[rig] >= 0:
+            out.append((key, _payload(seq[rig])))
+        elif action == "back" and seq[rig] >= 2:
+            out.append((key, _payload(seq[rig] - 2)))
+        elif action == "gap":
+            seq[rig] += 2 + d % 5
+            out.append((key, _payload(seq[rig])))
+        elif action == "restart":
+            seq[rig] = 0
+            out.append((key, _payload(0)))
+        elif action == "bad":
+            out.append((key, BAD_SAMPLES[d % len(BAD_SAMPLES)][1]))
+        elif action == "config":
+            out.append((f"hydro/rig/{rig}/config", CONFIGS[d % 2]))
+        elif action == "health":
+            out.append((f"hydro/rig/{rig}/health", b"{}"))
+        elif action == "badkey":
+            out.append((f"hydro/rig/{rig}/sample/x", _payload(0)))
+    return out
+
+
+def reference(msgs):
+    """The per-message path alone (how every message was taken before the batch path)."""
+    core = MonitorCore("hydro", eval_every=3)
+    out: list = []
+    for key, payload in msgs:
+        core._one(key, payload, out)
+    core._flush(out)
+    return core, out
+
+
+def per_rig(out):
+    got: dict = {}
+    for key, payload in out:
+        got.setdefault(key, []).append(payload)
+    return got
+
+
+@settings(max_examples=150, deadline=None)
+@given(draws=st.lists(st.tuples(st.integers(0, len(RIGS) - 1), st.integers(0, len(ACTIONS) - 1),
+                                st.integers(0, 100)), min_size=40, max_size=200),
+       cuts=st.lists(st.integers(1, 60), min_size=1, max_size=8))
+def test_any_batching_gives_each_rig_the_per_message_result(draws, cuts):
+    msgs = stream(draws)
+    ref_core, ref = reference(msgs)
+    core = MonitorCore("hydro", eval_every=3)
+    out, i, k = [], 0, 0
+    while i < len(msgs):
+        n = cuts[k % len(cuts)]
+        out += core.process(msgs[i:i + n])
+        i, k = i + n, k + 1
+    assert per_rig(out) == per_rig(ref)
+    assert core.counters.as_dict() == ref_core.counters.as_dict()
+    assert core.latest == ref_core.latest
+
+
+def test_a_steady_stream_takes_the_batch_path():
+    # the point of the batch path: after each rig's first sample, nothing goes one by one
+    msgs = [(f"hydro/rig/{r}/sample", _payload(s)) for s in range(40) for r in RIGS]
+    core = MonitorCore("hydro", eval_every=3)
+    core.process(msgs[:3])
+    calls = []
+    one = core._one
+    core._one = lambda *a: (calls.append(a[0]), one(*a))
+    out = core.process(msgs[3:])
+    assert calls == [] and core.counters.accepted == 120
+    assert per_rig(out) == per_rig(reference(msgs)[1])
+
+
+def test_sim_samples_takes_exactly_the_sims_shape():
+    good = _payload(3)
+    assert sim_samples([good]) == [tuple(orjson.loads(good).values())]
+    others = [p for _, p in BAD_SAMPLES] + [_payload(3, ints=True),
+                                            good.replace(b'"seq":3', b'"seq":%d' % (SEQ_MAX + 1))]
+    assert sim_samples(others) == [None] * len(others)
+    assert sim_samples([good] + others)[1:] == [None] * len(others)  # one bad one spoils none
+
+
+def test_a_config_change_inside_a_batch_applies_from_its_place():
+    # samples of ra, ra's constants change, more samples of ra: one batch, and ra's samples
+    # after the change must not be taken with those before it
+    before = [(f"hydro/rig/{r}/sample", _payload(s)) for s in range(8) for r in RIGS]
+    after = [(f"hydro/rig/{r}/sample", _payload(s)) for s in range(8, 20) for r in RIGS]
+    msgs = before + [("hydro/rig/ra/config", CONFIGS[1])] + after
+    core = MonitorCore("hydro", eval_every=3)
+    out = core.process(msgs[:3]) + core.process(msgs[3:])
+    ref_core, ref = reference(msgs)
+    assert ref_core.counters.config_changes == core.counters.config_changes == 1
+    assert per_rig(out) == per_rig(ref)
