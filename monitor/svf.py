@@ -4,16 +4,25 @@ F(s) = a^3 / (s + a)^3 with state [y, y', y''] = [F u, s F u, s^2 F u]: one filt
 signal's filtered value and its first two filtered derivatives, with no differentiation
 of raw (noisy) samples. Because F is linear, applying it to both sides of a linear-in-
 parameters equation keeps the equation (e.g. ``F[m x1''] = m s^2 F[x1]``); the only
-error left is the discretisation, which the Tustin (bilinear) map keeps O((w h)^2).
+error left is the discretisation.
 
-The discrete filter is x(k+1) = Ad x(k) + Bd u(k), y(k) = Cd x(k) + Dd u(k) with the
-bilinear discretisation of the controllable canonical form.
+Discretisation: first-order hold (the input is taken as piecewise linear between samples;
+scipy's ``cont2discrete(method="foh")`` formula), so the three outputs are the continuous
+filter's exact states at the sample instants for such an input: y' and y'' are then the
+exact derivatives of y, which a bilinear (Tustin) map only gives to O((a h)^2). Measured on
+the paper's identification input, noise-free, 10 s, a_force = 80 rad/s: Tustin m -0.142 %,
+B + f_v 0.019 %, f_c 0.38 %; first-order hold m -0.123 %, B + f_v 0.003 %, f_c 0.047 %.
+(What is left on m grows as about a^4: 0.006 % at 40 rad/s, 0.9 % at 120, 3.2 % at 160; the
+signals carry content near the 50 Hz Nyquist frequency that no hold reproduces.)
+
+The discrete filter is x(k+1) = Ad x(k) + Bd u(k), y(k) = Cd x(k) + Dd u(k).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from scipy.linalg import expm
 
 ORDER = 3
 
@@ -35,14 +44,18 @@ def svf_matrices(a: float, h: float) -> np.ndarray:
     A[-1, :] = -coeffs[1:][::-1]
     B = np.zeros(n)
     B[-1] = a**n
-    # bilinear: Ad = (I - A h/2)^-1 (I + A h/2), Bd = (I - A h/2)^-1 B h,
-    # Cd = (I - A h/2)^-1 ... written in the "shifted state" form with y = C x + D u
-    I = np.eye(n)
-    M = np.linalg.inv(I - A * h / 2)
-    Ad = M @ (I + A * h / 2)
-    Bd = M @ B * h
-    Cd = M  # C = I: outputs are the three states, at the trapezoid's mid-point correction
-    Dd = M @ B * h / 2
+    # first-order hold (scipy.signal.cont2discrete's "foh"): one matrix exponential of
+    # [[A h, B h, 0], [0, 0, 1], [0, 0, 0]] gives Phi = e^(A h) and the two hold integrals
+    em = np.zeros((n + 2, n + 2))
+    em[:n, :n] = A * h
+    em[:n, n] = B * h
+    em[n, n + 1] = 1.0
+    ms = expm(em)
+    phi, g1, g2 = ms[:n, :n], ms[:n, n], ms[:n, n + 1]
+    Ad = phi
+    Bd = g1 - g2 + phi @ g2
+    Cd = np.eye(n)
+    Dd = g2
     out = np.zeros((4, n, n))
     out[0] = Ad
     out[1][:, 0] = Bd
