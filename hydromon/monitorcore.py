@@ -40,14 +40,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from itertools import compress
 from operator import attrgetter, itemgetter
 
 import numpy as np
-import orjson
 
-from hydromon.contract import DEFAULT_NAMESPACE, GRADES, PARAM_NAMES, RigConfig, _check_ns, health_key, valid_rig_id
+from hydromon.contract import DEFAULT_NAMESPACE, RigConfig, _check_ns, health_key, valid_rig_id
 from hydromon.edge import REJECT_REASONS, Rejected, decode_json, parse_config, parse_sample, sim_samples
+from hydromon.health_json import health_payloads
 from monitor.pipeline import Fleet
 
 __all__ = ["MonitorCore", "MonitorCounters"]
@@ -93,7 +92,6 @@ class _Rig:
 _ROW = attrgetter("row")
 _SEQ = _KEY = itemgetter(0)
 _PAYLOAD = itemgetter(1)
-_GRADE_NAMES = GRADES + ("unknown",)  # level -1 -> "unknown"
 
 
 class MonitorCore:
@@ -175,32 +173,17 @@ class MonitorCore:
         self._clear()
 
     def _health(self, ev, t: np.ndarray, out: list) -> None:
-        """Health payloads of a batch's evaluations (NaN/inf left out: JSON has none)."""
-        ids, keys, seqs, status, latest, graded = self.fleet.ids, self._health_keys, self._b_seqs, \
-            self._b_status, self.latest, self._graded
-        p, s = ev.params, ev.std_errors
-        p_fin, s_fin = np.isfinite(p).tolist(), np.isfinite(s).tolist()
-        conf = ev.confidence
-        conf = np.where(np.isfinite(conf), np.clip(conf, 0.0, 1.0), 0.0).tolist()
+        """Health payloads of a batch's evaluations (``hydromon.health_json``)."""
+        seqs, status = self._b_seqs, self._b_status
         sample = ev.sample.tolist()
-        t_ev = t[ev.sample].tolist()
-        for j, (r, level, conv, pj, sj, gj) in enumerate(zip(ev.rig.tolist(), ev.level.tolist(),
-                                                             ev.converged.tolist(), p.tolist(), s.tolist(),
-                                                             ev.grades.tolist())):
-            i = sample[j]
+        statuses = []
+        for i, level, conv in zip(sample, ev.level.tolist(), ev.converged.tolist()):
             st = status.get(i) if status else None
-            if st is None:
-                st = "ok" if conv and level >= 0 else "converging"
-            payload = orjson.dumps({
-                "seq": seqs[i], "t": t_ev[j],
-                "grade": _GRADE_NAMES[level],
-                "level": level if level >= 0 else None,
-                "confidence": conf[j],
-                "params": dict(zip(compress(PARAM_NAMES, p_fin[j]), compress(pj, p_fin[j]))),
-                "param_grades": dict(zip(graded, map(_GRADE_NAMES.__getitem__, gj))),
-                "status": st,
-                "std_errors": dict(zip(compress(PARAM_NAMES, s_fin[j]), compress(sj, s_fin[j]))),
-            })
+            statuses.append(st if st is not None else "ok" if conv and level >= 0 else "converging")
+        payloads = health_payloads([seqs[i] for i in sample], t[ev.sample], ev.level, ev.confidence, ev.params,
+                                   ev.std_errors, ev.grades, statuses, self._graded)
+        ids, keys, latest = self.fleet.ids, self._health_keys, self.latest
+        for r, payload in zip(ev.rig.tolist(), payloads):
             latest[ids[r]] = payload
             out.append((keys[r], payload))
         self.counters.health += len(ev)

@@ -22,7 +22,8 @@ _SIM_SUMMARY = re.compile(r"(\d+) samples x (\d+) rig\(s\), (\d+) messages in ([
 
 
 def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: float = 1.0,
-              eval_every: int = 10, h: float = 0.01, max_p99_ms: float = 50.0) -> dict:
+              eval_every: int = 10, h: float = 0.01, max_p99_ms: float = 50.0,
+              monitor_args: tuple = ()) -> dict:
     """Run ``hydromon sim --rigs N --rate 1`` and ``hydromon monitor`` as processes on loopback.
 
     Topology: this process opens a probe session listening on P; the monitor listens on A and
@@ -69,7 +70,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         mon_log, sim_log = os.path.join(tmp, "monitor.log"), os.path.join(tmp, "sim.log")
         with open(mon_log, "w") as ml, open(sim_log, "w") as sl:
             mon = subprocess.Popen(py + ["monitor", "--listen", ep_a, "--connect", ep_p, "--node", "bench",
-                                         "--eval-every", str(eval_every)], stderr=ml, stdout=subprocess.DEVNULL)
+                                         "--eval-every", str(eval_every), *monitor_args], stderr=ml, stdout=subprocess.DEVNULL)
             sim = None
             try:
                 _wait_for(mon_log, "hydromon monitor: node", mon, 120)
