@@ -141,8 +141,9 @@ def test_record_over_a_real_zenoh_session_in_a_thread(tmp_path):
         pub_session.put(config_key("rig-7"), RigConfig(K_f=42.0).model_dump_json())
         for i in range(n):
             pub.put(sample_bytes(i, 100.0 + i * 0.01))
-        pub_session.put("hydro/notes/x", b'{"hello": 1}')
+        # the non-JSON one first: it does not reach on_message, so it must not be the last in flight
         pub_session.put("hydro/notes/y", b"not json")
+        pub_session.put("hydro/notes/x", b'{"hello": 1}')
         assert got.wait(20), f"recorder saw {count['n']} of {n + 2} messages"
         stop.set()
         worker.join(20)

@@ -23,7 +23,7 @@ _SIM_SUMMARY = re.compile(r"(\d+) samples x (\d+) rig\(s\), (\d+) messages in ([
 
 def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: float = 1.0,
               eval_every: int = 10, h: float = 0.01, max_p99_ms: float = 50.0,
-              monitor_args: tuple = ()) -> dict:
+              monitor_args: tuple = (), sim_args: tuple = ()) -> dict:
     """Run ``hydromon sim --rigs N --rate 1`` and ``hydromon monitor`` as processes on loopback.
 
     Topology: this process opens a probe session listening on P; the monitor listens on A and
@@ -76,7 +76,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
                 _wait_for(mon_log, "hydromon monitor: node", mon, 120)
                 time.sleep(1.0)  # subscribers declared and routes known
                 sim = subprocess.Popen(py + ["sim", "--rigs", str(n_rigs), "--rate", "1", "--connect", ep_a,
-                                             "--connect", ep_p], stderr=sl, stdout=subprocess.DEVNULL)
+                                             "--connect", ep_p, *sim_args], stderr=sl, stdout=subprocess.DEVNULL)
                 end = clock() + 120
                 while not samples and clock() < end:
                     if sim.poll() is not None:
@@ -119,12 +119,14 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     first = [(t, orjson.loads(p)["seq"]) for t, p in samples]  # the first rig's (arrival, seq)
     t0 = min(t - k * h for t, k in first)
     lo, hi = t0 + warm, t0 + warm + seconds
-    lat = []
+    lat, late = [], Counter()
     for t, p in health:
         seq = orjson.loads(p)["seq"]
         dl = t0 + seq * h
         if lo <= dl < hi:
             lat.append(t - dl)
+            if t - dl >= max_p99_ms * 1e-3:
+                late[int(dl - lo)] += 1
     k_lo, k_hi = math.ceil(warm / h - 1e-9), math.ceil((warm + seconds) / h - 1e-9)
     # the monitor staggers the rigs' evaluations (monitor.pipeline.eval_phase): count per phase
     from hydromon.fleetfile import spread_fleet
@@ -158,6 +160,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         "cpu_probe": (cpu1[2] - cpu0[2]) / wall,
         "seconds": seconds,
         "warm_s": warm,
+        # when the slow health messages came: {second of the window: how many took >= max_p99_ms}
+        "late_by_second": dict(sorted(late.items())),
         "monitor_summary": m.group(0) if m else mon_text[-500:],
         "sim_summary": sm.group(0) if sm else sim_text[-500:],
     }
