@@ -15,13 +15,18 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from plant_sim.params import RigConfig
 
 __all__ = [
-    "Sample", "Health", "RigConfig", "GRADES", "STATUSES", "PARAM_NAMES", "SEQ_MAX",
+    "Sample", "Health", "RigConfig", "GRADES", "STATUSES", "PARAM_NAMES", "SEQ_MAX", "SAMPLE_LIMITS",
     "RIG_ID_RE", "valid_rig_id", "sample_key", "health_key", "config_key", "liveliness_key",
     "parse_rig_key", "DEFAULT_NAMESPACE",
 ]
 
 DEFAULT_NAMESPACE = "hydro"
 SEQ_MAX = 2**63 - 1  # seq is a signed 64-bit count (the monitor keeps it in int64 arrays)
+# Magnitude limits of a sample's measured values (SI), far beyond any servo cylinder (strokes
+# under 10 m, pressures under 10 kbar, spool strokes of millimetres, command voltages of
+# volts) but below what overflows the estimators: one reading of 1e300 Pa used to leave a rig's
+# estimates at -1e295 for good. A value outside is rejected as bad-value.
+SAMPLE_LIMITS = {"ug": 1e3, "x1": 10.0, "x3": 1e9, "x4": 1e9, "x5": 0.1}
 GRADES = ("health", "sub-health", "average", "deterioration", "fault")
 STATUSES = ("converging", "ok", "stale", "bad-input")
 PARAM_NAMES = (
@@ -86,16 +91,17 @@ class Sample(_Payload):
     """One sample of a rig, ``<ns>/rig/<id>/sample``.
 
     seq counts samples per rig from 0 (at most 2**63 - 1); t is the rig clock [s]; ug [V]; x1 piston position [m];
-    x3, x4 chamber pressures [Pa]; x5 spool position [m].
+    x3, x4 chamber pressures [Pa]; x5 spool position [m]. Magnitudes are bounded (SAMPLE_LIMITS:
+    |ug| <= 1e3 V, |x1| <= 10 m, |x3|, |x4| <= 1e9 Pa, |x5| <= 0.1 m).
     """
 
     seq: int = Field(ge=0, le=SEQ_MAX)
     t: float
-    ug: float
-    x1: float
-    x3: float
-    x4: float
-    x5: float
+    ug: float = Field(ge=-SAMPLE_LIMITS["ug"], le=SAMPLE_LIMITS["ug"])
+    x1: float = Field(ge=-SAMPLE_LIMITS["x1"], le=SAMPLE_LIMITS["x1"])
+    x3: float = Field(ge=-SAMPLE_LIMITS["x3"], le=SAMPLE_LIMITS["x3"])
+    x4: float = Field(ge=-SAMPLE_LIMITS["x4"], le=SAMPLE_LIMITS["x4"])
+    x5: float = Field(ge=-SAMPLE_LIMITS["x5"], le=SAMPLE_LIMITS["x5"])
 
     @field_validator("t", "ug", "x1", "x3", "x4", "x5", mode="before")
     @classmethod

@@ -26,12 +26,13 @@ from collections.abc import Sequence
 from itertools import chain
 from operator import itemgetter
 
+import numpy as np
 import orjson
 from pydantic import ValidationError
 
-from hydromon.contract import SEQ_MAX, RigConfig, Sample
+from hydromon.contract import SAMPLE_LIMITS, SEQ_MAX, RigConfig, Sample
 
-__all__ = ["REJECT_REASONS", "Rejected", "decode_json", "parse_sample", "parse_config", "sim_samples"]
+__all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_sample", "parse_config", "sim_samples"]
 
 REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-field", "wrong-type",
                   "unknown-field", "bad-value")
@@ -42,6 +43,13 @@ _GET = itemgetter(*_SAMPLE_FIELDS)
 _SIM_TYPES = (int, float, float, float, float, float, float)
 _SIM_TYPES_LIST = list(_SIM_TYPES)
 _SEQ = itemgetter(0)
+_L_UG, _L_X1, _L_X3, _L_X4, _L_X5 = (SAMPLE_LIMITS[k] for k in ("ug", "x1", "x3", "x4", "x5"))
+#: |value| limits of the columns (ug, x1, x3, x4, x5), for checking a whole batch at once
+VALUE_LIMITS = np.array([_L_UG, _L_X1, _L_X3, _L_X4, _L_X5])
+
+
+def _in_limits(ug, x1, x3, x4, x5) -> bool:
+    return abs(ug) <= _L_UG and abs(x1) <= _L_X1 and abs(x3) <= _L_X3 and abs(x4) <= _L_X4 and abs(x5) <= _L_X5
 
 
 class Rejected(ValueError):
@@ -107,13 +115,14 @@ def parse_sample(obj) -> tuple[int, float, float, float, float, float, float]:
         # the common case, what our sim sends: an int seq and six floats (no conversions)
         if type(seq) is int and 0 <= seq <= SEQ_MAX and type(t) is float and type(ug) is float and type(x1) is float \
                 and type(x3) is float and type(x4) is float and type(x5) is float \
-                and math.isfinite(t + ug + x1 + x3 + x4 + x5):
+                and math.isfinite(t + ug + x1 + x3 + x4 + x5) and _in_limits(ug, x1, x3, x4, x5):
             return (seq, t, ug, x1, x3, x4, x5)
         if type(seq) is int and 0 <= seq <= SEQ_MAX:
             try:
                 # finite floats (orjson gives no NaN/inf) or ints; bools, str, None fail here
                 if type(t) in _NUM and type(ug) in _NUM and type(x1) in _NUM and type(x3) in _NUM and \
-                        type(x4) in _NUM and type(x5) in _NUM and math.isfinite(t + ug + x1 + x3 + x4 + x5):
+                        type(x4) in _NUM and type(x5) in _NUM and math.isfinite(t + ug + x1 + x3 + x4 + x5) \
+                        and _in_limits(ug, x1, x3, x4, x5):
                     return (seq, float(t), float(ug), float(x1), float(x3), float(x4), float(x5))
             except OverflowError:  # huge ints
                 pass
@@ -144,7 +153,8 @@ def sim_samples(payloads: Sequence[bytes]) -> list:
 
     Built for a whole batch at once: in the common case (every payload valid) the decode and
     every check are a few C-level passes over the batch, not Python per message. Floats need
-    no finiteness check: orjson refuses NaN, Infinity and numbers that overflow a double.
+    no finiteness check: orjson refuses NaN, Infinity and numbers that overflow a double. The
+    magnitude limits (``VALUE_LIMITS``) are left to the caller, on the array it builds anyway.
     """
     try:
         objs = list(map(orjson.loads, payloads))

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hydromon.contract import PARAM_NAMES
+from hydromon.contract import PARAM_NAMES, SAMPLE_LIMITS
 from monitor.grading import Ranges
 from monitor.identify import IdentOptions
 from monitor.pipeline import Assessment, Pipeline
@@ -98,6 +98,9 @@ def read_csv(src, name: str = "<csv>") -> np.ndarray:
                 raise ValueError(f"{name} line {line}: {c} = {row[j]!r} is not a number") from None
             if not math.isfinite(v):
                 raise ValueError(f"{name} line {line}: {c} = {row[j]!r} is not finite")
+            if abs(v) > SAMPLE_LIMITS.get(c, math.inf):
+                raise ValueError(f"{name} line {line}: {c} = {row[j]!r} is beyond the contract's limit "
+                                 f"|{c}| <= {SAMPLE_LIMITS[c]:g} (SI units?)")
             vals.append(v)
         rows.append(vals)
     if not rows:

@@ -45,7 +45,7 @@ from operator import attrgetter, itemgetter
 import numpy as np
 
 from hydromon.contract import DEFAULT_NAMESPACE, RigConfig, _check_ns, health_key, valid_rig_id
-from hydromon.edge import REJECT_REASONS, Rejected, decode_json, parse_config, parse_sample, sim_samples
+from hydromon.edge import REJECT_REASONS, VALUE_LIMITS, Rejected, decode_json, parse_config, parse_sample, sim_samples
 from hydromon.health_json import health_payloads
 from monitor.pipeline import Fleet
 
@@ -293,11 +293,12 @@ class MonitorCore:
     def _size(self) -> int:
         return len(self._b_seqs)
 
-    def _take_regular(self, rows: np.ndarray, seqs: list, tups: list) -> None:
-        """A run of samples each one past its rig's last seq, of rigs with nothing pending (no
-        gap being counted out, no bad input to report): no window of theirs ends abnormally."""
+    def _take_regular(self, rows: np.ndarray, seqs: list, vals: np.ndarray) -> None:
+        """A run of samples (vals: t..x5) each one past its rig's last seq, of rigs with nothing
+        pending (no gap being counted out, no bad input to report): no window of theirs ends
+        abnormally."""
         self._seal()
-        self._chunks.append((rows, np.array(tups, dtype=np.float64)[:, 1:]))
+        self._chunks.append((rows, vals))
         self._b_seqs.extend(seqs)
         self._last[rows] = seqs  # in order: a rig's last assignment is its last seq
         np.add.at(self._n, rows, 1)
@@ -329,6 +330,10 @@ class MonitorCore:
             slow[rows[bad]] = True
             tups = [tp if tp is not None else (-1,) * 7 for tp in tups]
         seqs = np.fromiter(map(_SEQ, tups), np.int64, len(tups))
+        vals = np.array(tups, dtype=np.float64)[:, 1:]  # t, ug, x1, x3, x4, x5
+        out_of_limits = (np.abs(vals[:, 1:]) > VALUE_LIMITS).any(axis=1)
+        if out_of_limits.any():  # the per-message path rejects them (bad-value)
+            slow[rows[out_of_limits]] = True
         if pick is not None:  # a config (or health, or bad key) of a known rig: that rig goes slow
             prefix = self._prefix
             for i in set(range(len(messages))) - set(pick):
@@ -350,11 +355,11 @@ class MonitorCore:
         slow |= (self._gap >= 0) | self._bad
         keep = ~slow[rows]
         if keep.all():
-            self._take_regular(rows, seqs.tolist(), tups)
+            self._take_regular(rows, seqs.tolist(), vals)
             return [] if pick is None else [messages[i] for i in range(len(messages)) if rigs[i] is None]
         if keep.any():
             k = np.flatnonzero(keep)
-            self._take_regular(rows[k], seqs[k].tolist(), [tups[i] for i in k.tolist()])
+            self._take_regular(rows[k], seqs[k].tolist(), vals[k])
         taken = set((np.asarray(pick)[keep] if pick is not None else np.flatnonzero(keep)).tolist())
         return [m for i, m in enumerate(messages) if i not in taken]
 

@@ -77,4 +77,8 @@ BAD_SAMPLES = [
     ("unknown-field", sample_with(z=1.0)),
     ("bad-value", sample_with(seq=-1)),
     ("bad-value", sample_with(seq=2**63)),  # beyond SEQ_MAX (the monitor keeps seqs as int64)
+    ("bad-value", sample_with(x3=1e300)),   # beyond SAMPLE_LIMITS: finite, but would wreck the estimates
+    ("bad-value", sample_with(x1=-10.5)),
+    ("bad-value", sample_with(x5=0.2)),
+    ("bad-value", sample_with(ug=2000)),
 ]

@@ -85,6 +85,8 @@ def test_good_small_csv_parses(tmp_path):
     (GOOD.replace("x4,", ""), r"line 1.*lacks column\(s\) x4"),
     (GOOD.replace("0.01,2,0,1e6", "0.01,2,nan,1e6"), r"line 3: x1 = 'nan' is not finite"),
     (GOOD.replace("0.01,2,0,1e6", "0.01,2,abc,1e6"), r"line 3: x1 = 'abc' is not a number"),
+    (GOOD.replace("0.01,2,0,1e6", "0.01,2,0,1e300"), r"line 3: x3 = '1e300' is beyond the contract's limit"),
+    (GOOD.replace("0.01,2,0,1e6", "0.01,2,25,1e6"), r"line 3: x1 = '25' is beyond .* \|x1\| <= 10"),
     (GOOD.replace("0.02,", "0.005,"), r"line 4: t = 0.005 s does not increase"),
     (GOOD.replace("0.02,", "0.01,"), r"line 4: t = 0.01 s does not increase"),
     (GOOD.replace("0.02,", "0.0203,"), r"line 4: .*every 0.01 s"),

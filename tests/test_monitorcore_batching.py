@@ -8,7 +8,7 @@ import orjson
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hydromon.contract import SEQ_MAX, RigConfig
+from hydromon.contract import SAMPLE_LIMITS, SEQ_MAX, RigConfig
 from hydromon.edge import sim_samples
 from hydromon.monitorcore import MonitorCore
 from helpers import BAD_SAMPLES
@@ -106,10 +106,23 @@ def test_a_steady_stream_takes_the_batch_path():
     assert per_rig(out) == per_rig(reference(msgs)[1])
 
 
+def _beyond_limits_only(payload: bytes) -> bool:
+    # the sim's shape, values beyond SAMPLE_LIMITS: sim_samples leaves those to its caller
+    try:
+        d = orjson.loads(payload)
+    except orjson.JSONDecodeError:
+        return False
+    return isinstance(d, dict) and len(d) == 7 and type(d.get("seq")) is int and 0 <= d["seq"] <= SEQ_MAX \
+        and all(type(d.get(k)) is float for k in SAMPLE_LIMITS) and type(d.get("t")) is float \
+        and any(abs(d[k]) > lim for k, lim in SAMPLE_LIMITS.items())
+
+
 def test_sim_samples_takes_exactly_the_sims_shape():
     good = _payload(3)
     assert sim_samples([good]) == [tuple(orjson.loads(good).values())]
-    others = [p for _, p in BAD_SAMPLES] + [_payload(3, ints=True),
+    beyond = [p for _, p in BAD_SAMPLES if _beyond_limits_only(p)]
+    assert len(beyond) >= 3 and None not in sim_samples(beyond)  # the limits are MonitorCore's check
+    others = [p for _, p in BAD_SAMPLES if not _beyond_limits_only(p)] + [_payload(3, ints=True),
                                             good.replace(b'"seq":3', b'"seq":%d' % (SEQ_MAX + 1))]
     assert sim_samples(others) == [None] * len(others)
     assert sim_samples([good] + others)[1:] == [None] * len(others)  # one bad one spoils none

@@ -231,6 +231,23 @@ def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
     assert [orjson.loads(p)["seq"] for k, p in health if k == health_key("table4-g2")] == health_seqs("table4-g2", 400)
 
 
+def test_one_absurd_reading_is_rejected_and_the_rig_keeps_its_estimates(clean_run):
+    # a glitch of 1e300 Pa once left the rig's estimates at -1e295 for the rest of the run
+    _, clean = clean_run
+    rig = "table4-g2"
+    key = f"hydro/rig/{rig}/sample"
+    msgs = [(k, sample_with(**{**orjson.loads(p), "x3": 1e300}) if k == key and orjson.loads(p)["seq"] == 200 else p)
+            for k, p in CLEAN]
+    core, health = run_core(msgs)
+    assert core.counters.rejected["bad-value"] == 1 and core.counters.gaps == 1
+    got, want = by_rig(health), by_rig(clean)
+    last, ref = orjson.loads(got[rig][-1]), orjson.loads(want[rig][-1])
+    assert last["status"] == "ok" and last["grade"] == ref["grade"] == TABLE4_PAPER_GRADES[2]
+    for name, v in ref["params"].items():
+        assert abs(last["params"][name] - v) <= 0.02 * abs(v) + 1e-12, name
+    assert any(orjson.loads(p)["status"] == "bad-input" for p in got[rig])
+
+
 def test_health_payloads_hold_only_finite_numbers():
     # early verdicts have equations without rows: infinite standard errors are left out
     core, health = run_core(CLEAN[:5 + 5 * 40])
