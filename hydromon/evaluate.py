@@ -20,6 +20,7 @@ from hydromon.contract import PARAM_NAMES, SAMPLE_LIMITS
 from monitor.grading import Ranges
 from monitor.identify import IdentOptions
 from monitor.pipeline import Assessment, Pipeline
+from monitor.refine import REFINED, Refinement, refine
 from plant_sim.params import RigConfig
 
 __all__ = ["CSV_COLUMNS", "Recording", "Evaluation", "read_csv", "load_recording", "check_sampling",
@@ -53,6 +54,7 @@ class Evaluation:
 
     recording: Recording
     assessment: Assessment
+    refined: Refinement | None = None  # the whole-record prediction-error fit, when asked for
 
     @property
     def status(self) -> str:
@@ -172,11 +174,14 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
 
 
 def evaluate(recording: Recording, ranges: Ranges | None = None,
-             options: IdentOptions | None = None) -> Evaluation:
-    """Run the monitor pipeline over the whole recording; the last assessment is the result."""
+             options: IdentOptions | None = None, refined: bool = False) -> Evaluation:
+    """Run the monitor pipeline over the whole recording; the last assessment is the result.
+    With ``refined``, also fit the whole model to the record by prediction error
+    (``monitor.refine``), started from the pipeline's estimates."""
     pipe = Pipeline(config=recording.config, options=options, ranges=ranges)
     _events, assessment = pipe.run(recording.samples)
-    return Evaluation(recording, assessment)
+    ref = refine(recording.samples, recording.config, assessment.params) if refined else None
+    return Evaluation(recording, assessment, ref)
 
 
 def _num(v: float):
@@ -184,10 +189,11 @@ def _num(v: float):
 
 
 def to_json(ev: Evaluation) -> dict:
-    """The ``evaluate --json`` document, exactly DESIGN.md section 6's keys; non-finite numbers
-    (an unidentified parameter's standard error is inf) become null."""
+    """The ``evaluate --json`` document: DESIGN.md section 6's keys (plus ``refined`` when the
+    refinement ran); non-finite numbers (an unidentified parameter's standard error is inf)
+    become null."""
     a = ev.assessment
-    return {
+    out = {
         "grade": a.grade,
         "level": a.level if a.level >= 0 else None,
         "confidence": float(a.confidence),
@@ -195,6 +201,13 @@ def to_json(ev: Evaluation) -> dict:
         "params": {k: _num(a.params[k]) for k in PARAM_NAMES},
         "std_errors": {k: _num(a.std_errors[k]) for k in PARAM_NAMES},
     }
+    if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
+        r = ev.refined
+        out["refined"] = {"ok": r.ok, "message": r.message,
+                          "params": {k: _num(r.params[k]) for k in REFINED},
+                          "std_errors": {k: _num(r.std_errors[k]) for k in REFINED},
+                          "sensor_noise": r.noise}
+    return out
 
 
 def render(ev: Evaluation, console=None) -> None:
@@ -211,13 +224,22 @@ def render(ev: Evaluation, console=None) -> None:
     console.print(f"grade [bold]{a.grade}[/bold]  level {level}  confidence {a.confidence:.3f}  "
                   f"status {ev.status}")
     t = Table(show_header=True, header_style="bold")
-    for col, just in (("parameter", "left"), ("value", "right"), ("std error", "right"),
-                      ("unit", "left"), ("grade", "left")):
+    ref = ev.refined
+    cols = [("parameter", "left"), ("value", "right"), ("std error", "right")]
+    if ref is not None:
+        cols += [("refined", "right"), ("std error ", "right")]
+    for col, just in cols + [("unit", "left"), ("grade", "left")]:
         t.add_column(col, justify=just)
     grades = a.param_grades
     for k in PARAM_NAMES:
-        t.add_row(k, f"{a.params[k]:.5g}", f"{a.std_errors[k]:.3g}", PARAM_UNITS[k], grades.get(k, ""))
+        row = [k, f"{a.params[k]:.5g}", f"{a.std_errors[k]:.3g}"]
+        if ref is not None:
+            row += [f"{ref.params[k]:.5g}", f"{ref.std_errors[k]:.3g}"] if k in REFINED else ["", ""]
+        t.add_row(*row, PARAM_UNITS[k], grades.get(k, ""))
     console.print(t)
+    if ref is not None:
+        console.print(f"refined: whole-record prediction-error fit, {'ok' if ref.ok else 'FAILED'}: {ref.message}; "
+                      "the grade is the streaming pipeline's")
 
 
 def csv_text(t: np.ndarray, samples: np.ndarray) -> str:
