@@ -10,10 +10,12 @@ Discretisation: first-order hold (the input is taken as piecewise linear between
 scipy's ``cont2discrete(method="foh")`` formula), so the three outputs are the continuous
 filter's exact states at the sample instants for such an input: y' and y'' are then the
 exact derivatives of y, which a bilinear (Tustin) map only gives to O((a h)^2). Measured on
-the paper's identification input, noise-free, 10 s, a_force = 80 rad/s: Tustin m -0.142 %,
-B + f_v 0.019 %, f_c 0.38 %; first-order hold m -0.123 %, B + f_v 0.003 %, f_c 0.047 %.
-(What is left on m grows as about a^4: 0.006 % at 40 rad/s, 0.9 % at 120, 3.2 % at 160; the
-signals carry content near the 50 Hz Nyquist frequency that no hold reproduces.)
+the paper's identification input, noise-free, 10 s, a_force = 80 rad/s: Tustin m off 0.142 %,
+B + f_v 0.019 %, f_c 0.38 %; first-order hold m off 0.123 %, B + f_v 0.003 %, f_c 0.047 %.
+(What is left on m grows as about a^4: 0.006 % at 40 rad/s, 0.9 % at 120, 3.2 % at 160; and
+falls with the sample rate: 0.011 % at 200 Hz, 0.001 % at 1 kHz. The piston's hydraulic
+resonance, ~19 Hz, has 5 samples a period, which a linear hold misses by ~(w h)^2/12; a cubic
+hold through four samples, one sample of delay, is the next step.)
 
 The discrete filter is x(k+1) = Ad x(k) + Bd u(k), y(k) = Cd x(k) + Dd u(k).
 """
