@@ -11,8 +11,9 @@ decoded, checked and queued together (``_regular``: a few C-level passes over th
 and array operations; measured at 1000 rigs live, the monitor's main thread went from 5.5
 to 4.1 us per sample). Every other message, and every message of a rig that has one in the
 batch, goes one by one through ``_one`` in arrival order. Rigs are independent, so each
-rig's health is the same as if every message had gone one by one (a property test);
-only the interleaving of different rigs' health messages in the output can differ.
+rig's health is the same as if every message had gone one by one, and the output is put
+back into the order of the samples that ended the windows: the same messages, bytes and
+order as one by one, whatever the batching (a property test; live and replay agree).
 
 ``<ns>/rig/<id>/health`` keys are the monitor's own output (recordings hold them): they
 are skipped and counted as ``ignored``, not rejected.
@@ -90,7 +91,7 @@ class _Rig:
 
 
 _ROW = attrgetter("row")
-_SEQ = _KEY = itemgetter(0)
+_SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
 
 
@@ -137,6 +138,7 @@ class MonitorCore:
         self._health_keys: list[str] = []          # per row
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
         self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
+        self._cur = 0  # index in the current process() call of the message being taken one by one
         # sequence state per row (arrays, so a batch of regular samples is checked at once)
         self._last = np.full(16, -1, dtype=np.int64)   # last seq taken; -1 = none yet
         self._n = np.zeros(16, dtype=np.int64)         # samples since the estimates (re)started
@@ -150,6 +152,7 @@ class MonitorCore:
         self._p_rows: list[int] = []    # samples taken one by one, not yet in a chunk
         self._p_vals: list[tuple] = []
         self._b_seqs: list[int] = []    # seq of every sample of the batch
+        self._b_msg: list[int] = []     # its message's index in the process() call (output order)
         self._b_status: dict[int, str] = {}  # batch index -> status, where a window ends abnormally
 
     def _seal(self) -> None:
@@ -174,7 +177,7 @@ class MonitorCore:
 
     def _health(self, ev, t: np.ndarray, out: list) -> None:
         """Health payloads of a batch's evaluations (``hydromon.health_json``)."""
-        seqs, status = self._b_seqs, self._b_status
+        seqs, status, msg = self._b_seqs, self._b_status, self._b_msg
         sample = ev.sample.tolist()
         statuses = []
         for i, level, conv in zip(sample, ev.level.tolist(), ev.converged.tolist()):
@@ -183,9 +186,9 @@ class MonitorCore:
         payloads = health_payloads([seqs[i] for i in sample], t[ev.sample], ev.level, ev.confidence, ev.params,
                                    ev.std_errors, ev.grades, statuses, self._graded)
         ids, keys, latest = self.fleet.ids, self._health_keys, self.latest
-        for r, payload in zip(ev.rig.tolist(), payloads):
+        for i, r, payload in zip(sample, ev.rig.tolist(), payloads):
             latest[ids[r]] = payload
-            out.append((keys[r], payload))
+            out.append((msg[i], keys[r], payload))
         self.counters.health += len(ev)
 
     # -- input ----------------------------------------------------------------------------
@@ -289,23 +292,26 @@ class MonitorCore:
         self._p_rows.append(r)
         self._p_vals.append(vals)
         self._b_seqs.append(seq)
+        self._b_msg.append(self._cur)
 
     def _size(self) -> int:
         return len(self._b_seqs)
 
-    def _take_regular(self, rows: np.ndarray, seqs: list, vals: np.ndarray) -> None:
+    def _take_regular(self, rows: np.ndarray, seqs: list, vals: np.ndarray, msg: list) -> None:
         """A run of samples (vals: t..x5) each one past its rig's last seq, of rigs with nothing
         pending (no gap being counted out, no bad input to report): no window of theirs ends
         abnormally."""
         self._seal()
         self._chunks.append((rows, vals))
         self._b_seqs.extend(seqs)
+        self._b_msg.extend(msg)
         self._last[rows] = seqs  # in order: a rig's last assignment is its last seq
         np.add.at(self._n, rows, 1)
         self.counters.accepted += len(seqs)
 
     def _regular(self, messages: list) -> list:
-        """Take the samples that need no per-message care at once; return the rest, in order.
+        """Take the samples that need no per-message care at once; return the rest, in order,
+        as (message index, key, payload).
 
         Regular = the sample key of a known rig, a payload exactly as our sim sends it
         (``edge.sim_samples``), seq one past the previous one of its rig, and a rig with no
@@ -317,7 +323,7 @@ class MonitorCore:
         if None in rigs:
             pick = [i for i, r in enumerate(rigs) if r is not None]
             if not pick:
-                return messages
+                return [(i, *m) for i, m in enumerate(messages)]
             cand = [rigs[i] for i in pick]
             payloads = [messages[i][1] for i in pick]
         else:
@@ -354,14 +360,15 @@ class MonitorCore:
         slow[r_s[irregular]] = True
         slow |= (self._gap >= 0) | self._bad
         keep = ~slow[rows]
+        index = np.arange(len(messages)) if pick is None else np.asarray(pick)  # message of each candidate
         if keep.all():
-            self._take_regular(rows, seqs.tolist(), vals)
-            return [] if pick is None else [messages[i] for i in range(len(messages)) if rigs[i] is None]
+            self._take_regular(rows, seqs.tolist(), vals, index.tolist())
+            return [] if pick is None else [(i, *messages[i]) for i in range(len(messages)) if rigs[i] is None]
         if keep.any():
             k = np.flatnonzero(keep)
-            self._take_regular(rows[k], seqs[k].tolist(), vals[k])
-        taken = set((np.asarray(pick)[keep] if pick is not None else np.flatnonzero(keep)).tolist())
-        return [m for i, m in enumerate(messages) if i not in taken]
+            self._take_regular(rows[k], seqs[k].tolist(), vals[k], index[k].tolist())
+        taken = set(index[keep].tolist())
+        return [(i, *m) for i, m in enumerate(messages) if i not in taken]
 
     def _one(self, key: str, payload: bytes, out: list) -> None:
         """One message the regular path did not take."""
@@ -394,11 +401,18 @@ class MonitorCore:
 
     def process(self, messages: Iterable[tuple[str, bytes]]) -> list[tuple[str, bytes]]:
         """Consume messages ``(key, payload bytes)`` in order; return the health messages
-        ``(key, JSON bytes)`` they produce (in order per rig). Never raises on bad input."""
-        out: list[tuple[str, bytes]] = []
+        ``(key, JSON bytes)`` they produce, in the order of the samples that ended their windows
+        (what taking every message one by one gives). Never raises on bad input."""
+        out: list = []  # (message index, key, payload)
         messages = messages if isinstance(messages, list) else list(messages)
         if messages:
-            for key, payload in self._regular(messages):
-                self._one(key, payload, out)
+            if len(messages) == 1:  # a lone message: no batch to gain from
+                self._cur = 0
+                self._one(*messages[0], out)
+            else:
+                for i, key, payload in self._regular(messages):
+                    self._cur = i
+                    self._one(key, payload, out)
         self._flush(out)
-        return out
+        out.sort(key=_FIRST)  # the regular samples were taken first: back into arrival order
+        return [(key, payload) for _, key, payload in out]
