@@ -24,7 +24,7 @@ from monitor.identify import THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F,
 from monitor.layout import (
     N_CH, N_LAGS, N_STREAMS, O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
     O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_SLOW, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RING,
-    SG_HALF, STATE_SIZE,
+    SG_HALF, STATE_SIZE, SVF_STATE,
 )
 from plant_sim.params import RigConfig
 
@@ -62,17 +62,17 @@ class NaiveIdentifier:
         k = Kernels(o, c.h)
         self._kernels = k
         self.h = c.h
-        # filters: Ad (3,3), Bd (3,), Cd (3,3), Dd (3,)
-        self.f_mats = (k.m_f[0], k.m_f[1][:, 0].copy(), k.m_f[2], k.m_f[3][:, 0].copy())
-        self.c_mats = (k.m_c[0], k.m_c[1][:, 0].copy(), k.m_c[2], k.m_c[3][:, 0].copy())
+        # filters (monitor.svf, cubic hold): Phi (3,3) and the input weights G (3,4)
+        self.f_mats = (k.m_f[:, :3].copy(), k.m_f[:, 3:].copy())
+        self.c_mats = (k.m_c[:, :3].copy(), k.m_c[:, 3:].copy())
         self.warm = math.ceil(o.warmup / c.h)
         self.guard = math.ceil(o.reversal_guard / c.h)
         self.n = 0
         self.ring = np.zeros((RING, N_CH))
         self.noise = np.zeros(4)
         self.noise_n = 0.0
-        self.svf_f = np.zeros((3, 3))
-        self.svf_c = np.zeros((9, 3))
+        self.svf_f = np.zeros((3, SVF_STATE))  # per signal: [x (3), u(k-1), u(k), u(k+1)]
+        self.svf_c = np.zeros((9, SVF_STATE))
         self.th_f, self.P_f = np.zeros(4), np.eye(4) * o.p0
         self.th_c, self.P_c = np.zeros(4), np.eye(4) * o.p0
         self.th_v, self.P_v = np.zeros(5), np.eye(5) * o.p0
@@ -137,13 +137,14 @@ class NaiveIdentifier:
 
     @staticmethod
     def _svf(mats, x, u):
-        Ad, Bd, Cd, Dd = mats
-        return Ad @ x + Bd * u, Cd @ x + Dd * u
+        phi, g = mats
+        y = phi @ x[:3] + g @ np.array([x[3], x[4], x[5], u])
+        return np.concatenate([y, x[4:6], [u]]), y
 
     @staticmethod
     def _svf_init(mats, u0):
-        Ad, Bd, _, _ = mats
-        return np.linalg.solve(np.eye(3) - Ad, Bd * u0)
+        phi, g = mats  # at rest: (I - Phi) x = G 1 u0
+        return np.concatenate([np.linalg.solve(np.eye(3) - phi, g.sum(axis=1) * u0), [u0, u0, u0]])
 
     def _valve(self) -> None:
         c, o = self.config, self.options
@@ -254,8 +255,8 @@ class NaiveIdentifier:
         # the compiled kernel's ring is a shift register: slot j holds the sample j before the newest
         lags = (self.n - 1 - np.arange(RING)) % RING
         st[O_RING:O_RING + RING * N_CH] = self.ring[lags].ravel()
-        st[O_SVF_F:O_SVF_F + 9] = self.svf_f.ravel()
-        st[O_SVF_C:O_SVF_C + 27] = self.svf_c.ravel()
+        st[O_SVF_F:O_SVF_F + 3 * SVF_STATE] = self.svf_f.ravel()
+        st[O_SVF_C:O_SVF_C + 9 * SVF_STATE] = self.svf_c.ravel()
         st[O_TH_F:O_TH_F + 4], st[O_P_F:O_P_F + 16] = self.th_f, self.P_f.ravel()
         st[O_TH_C:O_TH_C + 4], st[O_P_C:O_P_C + 16] = self.th_c, self.P_c.ravel()
         st[O_TH_V:O_TH_V + 5], st[O_P_V:O_P_V + 25] = self.th_v, self.P_v.ravel()

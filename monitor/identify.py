@@ -52,7 +52,7 @@ from .layout import (
     C_A1, C_A2, C_FL, C_KF, C_KP, C_PS, C_V10, C_V20, H_BC, H_H, H_IV, H_IV_START, H_LAM,
     H_NOISE_N, H_P0, H_VSTICK, H_GUARD, H_PMAX, H_STEP_TOL, H_WARM, HYPER_SIZE, N_CH, N_LAGS, O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_HIST,
     O_RES_W, O_RING, O_SLOW, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
-    RING, SG_HALF, STATE_SIZE,
+    RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
 from .rls import riv_update, rls_update
 from .svf import noise_gram, svf_init, svf_matrices, svf_step
@@ -318,15 +318,15 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     inputs_c = (c1, c3, c4, c1 * c3, c1 * c4, v * c3, v * c4, c5 * z1, c5 * z2)
     if n == 2 * SG_HALF:
         for i in range(3):
-            svf_init(m_f, st[O_SVF_F + 3 * i:O_SVF_F + 3 * i + 3], inputs_f[i])
+            svf_init(m_f, st[O_SVF_F + SVF_STATE * i:O_SVF_F + SVF_STATE * (i + 1)], inputs_f[i])
         for i in range(9):
-            svf_init(m_c, st[O_SVF_C + 3 * i:O_SVF_C + 3 * i + 3], inputs_c[i])
+            svf_init(m_c, st[O_SVF_C + SVF_STATE * i:O_SVF_C + SVF_STATE * (i + 1)], inputs_c[i])
     yf = work[20:29].reshape((3, 3))
     yc = work[29:56].reshape((9, 3))
     for i in range(3):
-        svf_step(m_f, st[O_SVF_F + 3 * i:O_SVF_F + 3 * i + 3], inputs_f[i], yf[i])
+        svf_step(m_f, st[O_SVF_F + SVF_STATE * i:O_SVF_F + SVF_STATE * (i + 1)], inputs_f[i], yf[i])
     for i in range(9):
-        svf_step(m_c, st[O_SVF_C + 3 * i:O_SVF_C + 3 * i + 3], inputs_c[i], yc[i])
+        svf_step(m_c, st[O_SVF_C + SVF_STATE * i:O_SVF_C + SVF_STATE * (i + 1)], inputs_c[i], yc[i])
     if n - 2 * SG_HALF < hyper[H_WARM]:
         return
 

@@ -12,14 +12,15 @@ RING = 2 * SG_HALF + 1
 N_CH = 5  # ug, x1, x3, x4, x5
 N_LAGS = 8  # residual autocorrelation lags used for honest standard errors
 N_STREAMS = 4  # residual streams: force, chamber 1, chamber 2, valve
+SVF_STATE = 6  # per filtered signal: the filter's 3 states and the last 3 inputs (monitor.svf)
 N_FORCE_SVF = 3  # x1, Q1, sign(v)
 N_CH_SVF = 9  # x1, x3, x4, x1*x3, x1*x4, v*x3, v*x4, x5*z1, x5*z2
 
 _FIELDS = [
     ("N", 1),  # samples since the last signal reset
     ("RING", RING * N_CH),
-    ("SVF_F", N_FORCE_SVF * 3),
-    ("SVF_C", N_CH_SVF * 3),
+    ("SVF_F", N_FORCE_SVF * SVF_STATE),
+    ("SVF_C", N_CH_SVF * SVF_STATE),
     ("TH_F", 4), ("P_F", 16),
     ("TH_C", 4), ("P_C", 16),
     ("TH_V", 5), ("P_V", 25),

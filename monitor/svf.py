@@ -6,18 +6,23 @@ of raw (noisy) samples. Because F is linear, applying it to both sides of a line
 parameters equation keeps the equation (e.g. ``F[m x1''] = m s^2 F[x1]``); the only
 error left is the discretisation.
 
-Discretisation: first-order hold (the input is taken as piecewise linear between samples;
-scipy's ``cont2discrete(method="foh")`` formula), so the three outputs are the continuous
-filter's exact states at the sample instants for such an input: y' and y'' are then the
-exact derivatives of y, which a bilinear (Tustin) map only gives to O((a h)^2). Measured on
-the paper's identification input, noise-free, 10 s, a_force = 80 rad/s: Tustin m off 0.142 %,
-B + f_v 0.019 %, f_c 0.38 %; first-order hold m off 0.123 %, B + f_v 0.003 %, f_c 0.047 %.
-(What is left on m grows as about a^4: 0.006 % at 40 rad/s, 0.9 % at 120, 3.2 % at 160; and
-falls with the sample rate: 0.011 % at 200 Hz, 0.001 % at 1 kHz. The piston's hydraulic
-resonance, ~19 Hz, has 5 samples a period, which a linear hold misses by ~(w h)^2/12; a cubic
-hold through four samples, one sample of delay, is the next step.)
+Discretisation: cubic hold. Between samples k and k+1 the input is taken as the Catmull-Rom
+cubic through samples k-1 .. k+2, and the filter's state advances exactly for that input:
 
-The discrete filter is x(k+1) = Ad x(k) + Bd u(k), y(k) = Cd x(k) + Dd u(k).
+    x(k+1) = Phi x(k) + G0 u(k-1) + G1 u(k) + G2 u(k+1) + G3 u(k+2),   Phi = e^(A h),
+    Gj = integral_0^h e^(A (h - s)) B w_j(s / h) ds   (w_j the Catmull-Rom weights),
+
+so the outputs are the continuous filter's states, and y', y'' exact derivatives of y, for
+that input. It needs u(k+2) to reach x(k+1): the outputs lag the input by one sample (every
+signal of an equation alike, so the equation's rows stay aligned). Why cubic, measured on the
+paper's identification input, noise-free, 10 s, a_force = 80 rad/s (batch replica of the force
+regression): a first-order hold (piecewise-linear input) left m 0.121 % off, this 0.001 %;
+B + f_v 0.0035 -> 0.0012 %, f_c 0.044 -> 0.007 %. The linear hold misses the piston's ~19 Hz
+hydraulic resonance (5 samples a period) by about (w h)^2/12; sampled at 400 Hz both agree
+(0.0015 and 0.0011 %). Tustin, before either: m 0.142 %.
+
+Per signal the state is [x (3), u(k-1), u(k), u(k+1)] (``layout.SVF_STATE`` = 6); a step takes
+u(k+2) and outputs x(k+1).
 """
 
 from __future__ import annotations
@@ -26,16 +31,26 @@ import numpy as np
 from numba import njit
 from scipy.linalg import expm
 
+from .layout import SVF_STATE
+
 ORDER = 3
 
 
+_CATMULL_ROM = np.array([  # w_j(tau) = sum_p C[j, p] tau^p, for u(k-1), u(k), u(k+1), u(k+2)
+    [0.0, -0.5, 1.0, -0.5],
+    [1.0, 0.0, -2.5, 1.5],
+    [0.0, 0.5, 2.0, -1.5],
+    [0.0, 0.0, -0.5, 0.5],
+])
+
+
 def svf_matrices(a: float, h: float) -> np.ndarray:
-    """Discrete SVF of bandwidth a [rad/s] at sample period h [s].
+    """Discrete SVF of bandwidth a [rad/s] at sample period h [s], cubic hold.
 
     Returns
     -------
-    array (4, 3, 3)
-        Stacked ``Ad``, ``Bd`` (column 0), ``Cd``, ``Dd`` (column 0): the layout the kernels read.
+    array (3, 7)
+        ``[Phi | G0 G1 G2 G3]``: the layout the kernels read.
     """
     if not (a > 0 and h > 0 and np.isfinite(a) and np.isfinite(h)):
         raise ValueError(f"SVF needs a > 0 [rad/s] and h > 0 [s], got a={a!r}, h={h!r}")
@@ -46,69 +61,51 @@ def svf_matrices(a: float, h: float) -> np.ndarray:
     A[-1, :] = -coeffs[1:][::-1]
     B = np.zeros(n)
     B[-1] = a**n
-    # first-order hold (scipy.signal.cont2discrete's "foh"): one matrix exponential of
-    # [[A h, B h, 0], [0, 0, 1], [0, 0, 0]] gives Phi = e^(A h) and the two hold integrals
-    em = np.zeros((n + 2, n + 2))
+    # M_p = integral_0^h e^(A (h - s)) B (s/h)^p ds, p = 0..3, from one matrix exponential: the
+    # input's polynomial basis is the nilpotent chain appended to the state (Van Loan)
+    em = np.zeros((n + 4, n + 4))
     em[:n, :n] = A * h
     em[:n, n] = B * h
-    em[n, n + 1] = 1.0
+    for p in range(3):
+        em[n + p, n + p + 1] = 1.0
     ms = expm(em)
-    phi, g1, g2 = ms[:n, :n], ms[:n, n], ms[:n, n + 1]
-    Ad = phi
-    Bd = g1 - g2 + phi @ g2
-    Cd = np.eye(n)
-    Dd = g2
-    out = np.zeros((4, n, n))
-    out[0] = Ad
-    out[1][:, 0] = Bd
-    out[2] = Cd
-    out[3][:, 0] = Dd
+    # the chain's state p after t = tau h is tau^(p) / p!: convert to the powers tau^p
+    fact = np.array([1.0, 1.0, 2.0, 6.0])
+    M = ms[:n, n:n + 4] * fact  # column p: integral of e^(A(h-s)) B (s/h)^p ds
+    out = np.zeros((n, 7))
+    out[:, :n] = ms[:n, :n]
+    out[:, n:] = M @ _CATMULL_ROM.T
     return out
 
 
 @njit(cache=True, error_model="numpy")
 def svf_init(m: np.ndarray, x: np.ndarray, u0: float) -> None:
-    """Set the filter state ``x`` (3,) to the steady state of a constant input u0."""
-    # steady state of x = Ad x + Bd u: solve (I - Ad) x = Bd u by hand (3x3, Cramer-free Gauss)
-    a = np.empty((3, 4))
-    for i in range(3):
-        for j in range(3):
-            a[i, j] = (1.0 if i == j else 0.0) - m[0, i, j]
-        a[i, 3] = m[1, i, 0] * u0
-    for c in range(3):
-        piv = c
-        for r in range(c + 1, 3):
-            if abs(a[r, c]) > abs(a[piv, c]):
-                piv = r
-        for j in range(4):
-            a[c, j], a[piv, j] = a[piv, j], a[c, j]
-        for r in range(3):
-            if r != c:
-                f = a[r, c] / a[c, c]
-                for j in range(4):
-                    a[r, j] -= f * a[c, j]
-    for i in range(3):
-        x[i] = a[i, 3] / a[i, i]
+    """Set a signal's state ``x`` (SVF_STATE,) to rest on a constant input u0 (DC gain 1:
+    the filter's value u0, its derivatives 0; the input history u0)."""
+    x[0] = u0
+    x[1] = 0.0
+    x[2] = 0.0
+    x[3] = u0
+    x[4] = u0
+    x[5] = u0
 
 
 @njit(cache=True, error_model="numpy")
 def svf_step(m: np.ndarray, x: np.ndarray, u: float, y: np.ndarray) -> None:
-    """Filter one sample u: write outputs [F u, sF u, s^2F u] into y (3,), advance state x (3,)."""
+    """Take input u = u(k+2): write [F u, sF u, s^2F u] at instant k+1 into y (3,) and advance
+    the state x (SVF_STATE,) = [x(k), u(k-1), u(k), u(k+1)] to [x(k+1), u(k), u(k+1), u(k+2)]."""
+    x0, x1, x2, um1, u0, u1 = x[0], x[1], x[2], x[3], x[4], x[5]
     for i in range(3):
-        acc = m[3, i, 0] * u
-        for j in range(3):
-            acc += m[2, i, j] * x[j]
-        y[i] = acc
-    x0, x1, x2 = x[0], x[1], x[2]
-    for i in range(3):
-        x[i] = m[0, i, 0] * x0 + m[0, i, 1] * x1 + m[0, i, 2] * x2 + m[1, i, 0] * u
+        y[i] = m[i, 0] * x0 + m[i, 1] * x1 + m[i, 2] * x2 + m[i, 3] * um1 + m[i, 4] * u0 + m[i, 5] * u1 + m[i, 6] * u
+    x[0], x[1], x[2] = y[0], y[1], y[2]
+    x[3], x[4], x[5] = u0, u1, u
 
 
 def impulse_response(m: np.ndarray, n: int = 0) -> np.ndarray:
     """(n, 3) impulse response of the three outputs (zero initial state); n defaults to 40/a-ish."""
     if n <= 0:
         n = 2000
-    x = np.zeros(3)
+    x = np.zeros(SVF_STATE)
     y = np.zeros(3)
     out = np.empty((n, 3))
     for k in range(n):

@@ -9,6 +9,7 @@ from hypothesis import given, settings, strategies as st
 from hydromon.contract import PARAM_NAMES
 from monitor.pipeline import Fleet, Pipeline
 from monitor.rls import RLS, rls_step
+from monitor.layout import SVF_STATE
 from monitor.svf import svf_init, svf_matrices, svf_step
 from plant_sim.degradation import TABLE4_PAPER_GRADES, table4_group
 from plant_sim.noise import noise_model
@@ -52,46 +53,51 @@ def test_rls_refuses_nonfinite_rows():
     assert np.all(th == 0) and np.all(P == np.eye(2))
 
 
-def test_svf_is_scipys_first_order_hold():
-    from scipy.signal import cont2discrete
-
+def test_svf_at_rest_stays_at_rest_and_refuses_bad_bandwidths():
     for a, h in ((25.0, 0.01), (80.0, 0.01), (300.0, 0.002)):
         m = svf_matrices(a, h)
-        A = np.array([[0, 1, 0], [0, 0, 1], [-a**3, -3 * a**2, -3 * a]])
-        B = np.array([[0], [0], [a**3]])
-        Ad, Bd, Cd, Dd, _ = cont2discrete((A, B, np.eye(3), np.zeros((3, 1))), h, method="foh")
-        assert np.allclose(m[0], Ad, rtol=1e-12, atol=1e-14) and np.allclose(m[1][:, 0], Bd[:, 0], rtol=1e-12)
-        assert np.allclose(m[2], Cd) and np.allclose(m[3][:, 0], Dd[:, 0], rtol=1e-12)
+        x, y = np.zeros(SVF_STATE), np.zeros(3)
+        svf_init(m, x, 3.5e6)
+        for _ in range(50):
+            svf_step(m, x, 3.5e6, y)
+        np.testing.assert_allclose(y, [3.5e6, 0.0, 0.0], atol=1e-6 * 3.5e6)
     with pytest.raises(ValueError):
-        svf_matrices(-1.0, h)
+        svf_matrices(-1.0, 0.01)
+
+
+def _catmull_rom(p0, p1, p2, p3, tau):
+    return 0.5 * (2 * p1 + (p2 - p0) * tau + (2 * p0 - 5 * p1 + 4 * p2 - p3) * tau**2
+                  + (3 * p1 - p0 - 3 * p2 + p3) * tau**3)
 
 
 @settings(max_examples=20, deadline=None)
 @given(a=st.floats(5.0, 150.0), seed=st.integers(0, 2**32 - 1), scale=st.floats(1e-6, 1e7))
-def test_svf_outputs_are_the_filter_states_for_a_piecewise_linear_input(a, seed, scale):
-    # the hold's promise: for an input linear between samples, the outputs at the sample
-    # instants are the continuous filter's states [F u, sF u, s^2F u] (checked against a fine
-    # RK4 integration of the continuous filter; a bilinear map is off by O((a h)^2) here)
+def test_svf_outputs_are_the_filter_states_for_the_cubic_through_the_samples(a, seed, scale):
+    # the hold's promise: with the input taken as the Catmull-Rom cubic through the samples,
+    # the outputs are the continuous filter's states [F u, sF u, s^2F u] one sample back
+    # (checked against a fine RK4 integration of the continuous filter; the first-order hold
+    # it replaces was off by O((a h)^2) here)
     h, n, sub = 0.01, 40, 200
-    u = np.random.default_rng(seed).normal(size=n) * scale
+    u = np.concatenate([[0.0, 0.0, 0.0], np.random.default_rng(seed).normal(size=n) * scale])
     m = svf_matrices(a, h)
-    x, y = -m[3][:, 0] * u[0], np.zeros(3)  # the filter at rest at t = 0 (its state carries D u)
+    x, y = np.zeros(SVF_STATE), np.zeros(3)
+    svf_init(m, x, 0.0)  # at rest on the padding: x at the instant of u[1], history u[0..2]
     A = np.array([[0, 1, 0], [0, 0, 1], [-a**3, -3 * a**2, -3 * a]])
     b = np.array([0, 0, a**3])
     xc = np.zeros(3)
     dt = h / sub
-    for k in range(n):
-        svf_step(m, x, u[k], y)
+    for j in range(n):
+        svf_step(m, x, u[j + 3], y)  # -> the state at the instant of u[j + 2]
+        p = u[j:j + 4]
+        f = lambda s, z: A @ z + b * _catmull_rom(*p, s / h)  # noqa: E731
+        for i in range(sub):
+            s0 = i * dt
+            k1 = f(s0, xc)
+            k2 = f(s0 + dt / 2, xc + dt / 2 * k1)
+            k3 = f(s0 + dt / 2, xc + dt / 2 * k2)
+            k4 = f(s0 + dt, xc + dt * k3)
+            xc = xc + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         assert np.allclose(y, xc, rtol=1e-6, atol=1e-9 * scale * np.array([1, a, a * a]))
-        if k + 1 < n:
-            f = lambda s, z: A @ z + b * (u[k] + (u[k + 1] - u[k]) * s / h)  # noqa: E731
-            for j in range(sub):
-                s0 = j * dt
-                k1 = f(s0, xc)
-                k2 = f(s0 + dt / 2, xc + dt / 2 * k1)
-                k3 = f(s0 + dt / 2, xc + dt / 2 * k2)
-                k4 = f(s0 + dt, xc + dt * k3)
-                xc = xc + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
 @pytest.fixture(scope="module")

@@ -41,7 +41,7 @@ def test_noise_free_record_gives_the_true_force_and_chamber_parameters():
 
 
 def test_realistic_noise_b_fv_within_one_percent_with_honest_standard_errors():
-    # the target for B + f_v (the streaming identifier: 3.8 %); 10 seeds
+    # the target for B + f_v (the streaming identifier: 4.3 %); 10 seeds
     runs, starts = _runs("realistic", SEEDS)
     true = runs[0].params.identified()
     refs = [refine(r.samples, RigConfig(), s) for r, s in zip(runs, starts)]

@@ -17,7 +17,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--ranges", metavar="FILE", help="health ranges JSON (default: the paper's Table 3)")
     parser.add_argument("--refine", action="store_true",
                         help="also fit the force and chamber parameters to the whole record by prediction error "
-                             "(monitor/refine.py: B + f_v at realistic sensor noise ~0.8 %% instead of ~3.8 %%; "
+                             "(monitor/refine.py: B + f_v at realistic sensor noise ~0.8 %% instead of ~4 %%; "
                              "about 0.1 s of CPU per second of data)")
 
 
