@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 import numpy as np
+import orjson
 import pytest
 
 from hydromon.bench import paper_var_samples
@@ -108,11 +109,15 @@ def test_live_step_smoke():
     # sim + monitor processes on loopback: every health message arrives, nothing is lost
     from hydromon.bench import live_step
 
-    r = live_step(5, seconds=2.0, warm=1.0)
+    # a 0 ms limit makes every health message late: late_by_second is filled, and the step
+    # must still serialise as the history file and --json write it (a run once crashed there)
+    r = live_step(5, seconds=2.0, warm=1.0, max_p99_ms=0.0)
     assert r["lost"] == 0
     assert r["health_expected"] == 5 * 20 and r["health_received"] == r["health_expected"]
     assert r["p50_ms"] > 0 and r["p99_ms"] >= r["p50_ms"]
     assert r["cpu_monitor"] > 0
+    assert not r["ok"] and sum(r["late_by_second"].values()) == r["health_received"]
+    assert orjson.loads(orjson.dumps(r, option=orjson.OPT_SERIALIZE_NUMPY))["late_by_second"] == r["late_by_second"]
 
 
 def test_naive_rejects_bad_shape():

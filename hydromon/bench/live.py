@@ -161,7 +161,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         "seconds": seconds,
         "warm_s": warm,
         # when the slow health messages came: {second of the window: how many took >= max_p99_ms}
-        "late_by_second": dict(sorted(late.items())),
+        "late_by_second": {str(k): v for k, v in sorted(late.items())},  # JSON keys are strings
         "monitor_summary": m.group(0) if m else mon_text[-500:],
         "sim_summary": sm.group(0) if sm else sim_text[-500:],
     }
