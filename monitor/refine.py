@@ -32,15 +32,17 @@ import numpy as np
 from numba import njit
 from scipy.optimize import least_squares
 
-from plant_sim.model import orifice_z
-from plant_sim.params import RigConfig
+from hydromon.contract import PARAM_NAMES
+from plant_sim.model import derivatives
+from plant_sim.params import (
+    P_B, P_BETA, P_CDW_RHO, P_CEP, P_CIP, P_FC, P_FV, P_KSV, P_KT, P_M, P_WSV, P_ZSV, PlantParams, RigConfig,
+    plant_vector,
+)
 
 __all__ = ["Refinement", "refine", "sensor_noise", "REFINED"]
 
 N_STATES = 6
-#: the parameters, in hydromon.contract.PARAM_NAMES order, and their nominal scales
-NAMES = ("m", "B_fv", "f_c", "K_t", "inv_beta_e", "CdW_sqrt_rho", "C_ip", "C_ep",
-         "two_zeta_omega", "omega_sv2", "K_sv_omega_sv2")
+#: nominal scales of the parameters, in PARAM_NAMES order (the kernels index them so)
 NOMINAL = np.array([100.0, 1e4, 10.0, 1e6, 1e-9, 1e-3, 1e-11, 1e-11, 100.0, 1e4, 1.0])
 #: the ones the refinement is better at than the streaming identifier
 REFINED = ("m", "B_fv", "f_c", "K_t", "inv_beta_e", "CdW_sqrt_rho", "C_ip", "C_ep")
@@ -52,20 +54,16 @@ SUBSTEPS = 6  # RK4 steps per sample in the predictor
 
 
 @njit(cache=True)
-def _deriv(x, ug, th, rc, out):
-    m, b, fc, kt, ib, cd, cip, cep = th[0], th[1], th[2], th[3], th[4], th[5], th[6], th[7]
-    c1, c2, c3 = th[8], th[9], th[10]
-    a1, a2, v10, v20, ps, fl, kp, kf = rc[0], rc[1], rc[2], rc[3], rc[4], rc[5], rc[6], rc[7]
-    x1, x2, p1, p2, x5, x6 = x[0], x[1], x[2], x[3], x[4], x[5]
-    z1, z2 = orifice_z(x5, p1, p2, ps)
-    sg = 1.0 if x2 > 0.0 else (-1.0 if x2 < 0.0 else 0.0)
-    leak = cip * (p1 - p2)
-    out[0] = x2
-    out[1] = (a1 * p1 - a2 * p2 - fl - b * x2 - fc * sg - kt * x1) / m
-    out[2] = (cd * x5 * z1 - a1 * x2 - leak - cep * p1) / ((v10 + a1 * x1) * ib)
-    out[3] = (-cd * x5 * z2 + a2 * x2 + leak - cep * p2) / ((v20 - a2 * x1) * ib)
-    out[4] = x6
-    out[5] = -c1 * x6 - c2 * x5 + c3 * kp * (ug - kf * x1)
+def _plant(th, base):
+    """The plant vector (plant_sim.params) of identified parameters th, on base (the rig's
+    constants, effects off): B + f_v as B, 1/beta_e, and the valve's (2 zeta omega, omega^2,
+    K_sv omega^2) as zeta, omega, K_sv. No clamping: the fit moves freely (C_ep may go < 0)."""
+    p = base.copy()
+    p[P_M], p[P_B], p[P_FV], p[P_FC], p[P_KT] = th[0], th[1], 0.0, th[2], th[3]
+    p[P_BETA], p[P_CDW_RHO], p[P_CIP], p[P_CEP] = 1.0 / th[4], th[5], th[6], th[7]
+    w = math.sqrt(th[9])
+    p[P_WSV], p[P_ZSV], p[P_KSV] = w, th[8] / (2.0 * w), th[10] / th[9]
+    return p
 
 
 @njit(cache=True)
@@ -80,7 +78,7 @@ def _command(u, k, tau):
 
 
 @njit(cache=True)
-def _predict(x, ug, k, th, rc, h, out):
+def _predict(x, ug, k, p, h, out):
     y = x.copy()
     k1, k2, k3, k4, t = np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6)
     dt = h / SUBSTEPS
@@ -88,29 +86,31 @@ def _predict(x, ug, k, th, rc, h, out):
         ua = _command(ug, k, i / SUBSTEPS)
         um = _command(ug, k, (i + 0.5) / SUBSTEPS)
         ub = _command(ug, k, (i + 1.0) / SUBSTEPS)
-        _deriv(y, ua, th, rc, k1)
+        derivatives(y, ua, y[0], p, k1)
         for j in range(6):
             t[j] = y[j] + 0.5 * dt * k1[j]
-        _deriv(t, um, th, rc, k2)
+        derivatives(t, um, t[0], p, k2)
         for j in range(6):
             t[j] = y[j] + 0.5 * dt * k2[j]
-        _deriv(t, um, th, rc, k3)
+        derivatives(t, um, t[0], p, k3)
         for j in range(6):
             t[j] = y[j] + dt * k3[j]
-        _deriv(t, ub, th, rc, k4)
+        derivatives(t, ub, t[0], p, k4)
         for j in range(6):
             y[j] += dt / 6.0 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j])
     out[:] = y
 
 
 @njit(cache=True)
-def innovations(meas, ug, th, rc, h, sig, q, n0):
-    """Whitened one-step innovations (from sample n0 on) of the EKF over the whole model.
+def innovations(meas, ug, th, base, h, sig, q, n0):
+    """Whitened one-step innovations (from sample n0 on) of the EKF over the whole model
+    (``plant_sim.model.derivatives``, the simulator's own equations).
 
-    meas (N, 4) = x1 [m], p1 [Pa], p2 [Pa], x5 [m]; ug (N,) [V]; th (11,) SI; rc (8,) = A1, A2,
-    V10, V20, p_s, F_L, K_p, K_f; sig (4,) sensor noise rms; q (6,) process noise per step.
-    NaN in the output if the filter blows up (the caller's cost is then infinite).
+    meas (N, 4) = x1 [m], p1 [Pa], p2 [Pa], x5 [m]; ug (N,) [V]; th (11,) SI in PARAM_NAMES
+    order; base: the rig's plant vector (its constants; effects off); sig (4,) sensor noise
+    rms; q (6,) process noise per step. NaN in the output if the filter blows up.
     """
+    pv = _plant(th, base)
     n = meas.shape[0]
     r = np.diag(sig ** 2)
     qq = np.diag(q ** 2)
@@ -124,11 +124,11 @@ def innovations(meas, ug, th, rc, h, sig, q, n0):
     step = np.array([1e-6, 1e-4, 10.0, 10.0, 1e-8, 1e-6])  # finite-difference steps per state
     for k in range(n):
         if k > 0:
-            _predict(x, ug, k - 1, th, rc, h, xn)
+            _predict(x, ug, k - 1, pv, h, xn)
             for j in range(6):
                 xd = x.copy()
                 xd[j] += step[j]
-                _predict(xd, ug, k - 1, th, rc, h, xp)
+                _predict(xd, ug, k - 1, pv, h, xp)
                 for i in range(6):
                     f[i, j] = (xp[i] - xn[i]) / step[j]
             p = f @ p @ f.T + qq
@@ -196,17 +196,18 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
     if samples.shape[0] < n0 + 100:
         raise ValueError(f"{samples.shape[0]} samples: the refinement needs at least {n0 + 100}")
     sig = sensor_noise(samples) if noise is None else np.maximum(np.asarray(noise, dtype=np.float64), NOISE_FLOOR)
-    th0 = np.array([start.get(k, math.nan) for k in NAMES], dtype=np.float64)
+    th0 = np.array([start.get(k, math.nan) for k in PARAM_NAMES], dtype=np.float64)
     th0 = np.where(np.isfinite(th0) & (th0 != 0), th0, NOMINAL)
-    rc = np.array([config.A1, config.A2, config.V10, config.V20, config.p_s, config.F_L, config.K_p, config.K_f])
+    base = plant_vector(config, PlantParams())  # the rig's constants; the parameters come from th
     meas, ug = np.ascontiguousarray(samples[:, 1:5]), np.ascontiguousarray(samples[:, 0])
 
     def cost(u):
-        w = innovations(meas, ug, u * NOMINAL, rc, h, sig, PROCESS_NOISE, n0)
+        w = innovations(meas, ug, u * NOMINAL, base, h, sig, PROCESS_NOISE, n0)
         return np.where(np.isfinite(w), w, 1e6)
 
     noise_d = dict(zip(("x1", "x3", "x4", "x5"), map(float, sig)))
-    fail = Refinement(dict(zip(NAMES, map(float, th0))), dict.fromkeys(NAMES, math.inf), False, "", 0, noise_d)
+    fail = Refinement(dict(zip(PARAM_NAMES, map(float, th0))), dict.fromkeys(PARAM_NAMES, math.inf), False, "", 0,
+                      noise_d)
     try:
         res = least_squares(cost, th0 / NOMINAL, method="lm", x_scale="jac", max_nfev=max_evaluations)
     except (ValueError, np.linalg.LinAlgError) as exc:
@@ -222,5 +223,5 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
         return fail
     se = np.sqrt(np.clip(np.diag(cov), 0, None) * max(s2, 1.0)) * NOMINAL
     ok = bool(res.success and np.all(np.isfinite(th)) and s2 < 100.0)
-    return Refinement(dict(zip(NAMES, map(float, th))), dict(zip(NAMES, map(float, se))), ok,
+    return Refinement(dict(zip(PARAM_NAMES, map(float, th))), dict(zip(PARAM_NAMES, map(float, se))), ok,
                       f"{res.message} (innovation variance {s2:.3f})", int(res.nfev), noise_d)
