@@ -72,7 +72,7 @@ class NaiveIdentifier:
         self.noise = np.zeros(4)
         self.noise_n = 0.0
         self.svf_f = np.zeros((3, SVF_STATE))  # per signal: [x (3), u(k-1), u(k), u(k+1)]
-        self.svf_c = np.zeros((9, SVF_STATE))
+        self.svf_c = np.zeros((10, SVF_STATE))
         self.th_f, self.P_f = np.zeros(4), np.eye(4) * o.p0
         self.th_c, self.P_c = np.zeros(4), np.eye(4) * o.p0
         self.th_v, self.P_v = np.zeros(5), np.eye(5) * o.p0
@@ -179,72 +179,79 @@ class NaiveIdentifier:
         sample = np.asarray(sample, dtype=np.float64)
         if sample.shape != (N_CH,):
             raise ValueError(f"sample must be (ug, x1, x3, x4, x5), got shape {sample.shape}")
-        c, o = self.config, self.options
         n = self.n
         self.ring[n % RING] = sample
         self.n = n + 1
-        lam = o.lam
         self._noise_update()
         if n >= 2:
             self._valve()
-        if n < 2 * SG_HALF:
-            return
-        j = np.arange(-SG_HALF, SG_HALF + 1, dtype=float)
-        x1_win = np.array([self._at(SG_HALF - int(i), 1) for i in j])
-        v = (j @ x1_win) / ((j @ j) * self.h)
-        c1, c3, c4, c5 = (self._at(SG_HALF, ch) for ch in (1, 2, 3, 4))
-        a1, a2 = c.A1, c.A2
-        q1 = a1 * c3 - a2 * c4 - c.F_L
-        sg = float(np.sign(v))
-        z1, z2 = _orifice_z(c5, c3, c4, c.p_s)
-        v_noise = 3.0 * math.sqrt(self.noise[0] / 70.0 / ((j @ j) * self.h * self.h))
-        self.slow = 0.0 if abs(v) < max(o.v_stick, v_noise) else self.slow + 1.0
-        u_f = np.array([c1, q1, sg])
-        u_c = np.array([c1, c3, c4, c1 * c3, c1 * c4, v * c3, v * c4, c5 * z1, c5 * z2])
-        if n == 2 * SG_HALF:
-            self.svf_f = np.array([self._svf_init(self.f_mats, u) for u in u_f])
+        self._chambers(n)
+        if n >= 2 * SG_HALF:
+            self._force(n)
+
+    def _chambers(self, n: int) -> None:
+        """Chamber rows (eq 28-38) from the newest sample, in flow units, two per sample."""
+        c, o = self.config, self.options
+        x1, x3, x4, x5 = (self._at(0, ch) for ch in (1, 2, 3, 4))
+        # each chamber equation divided by its volume: A1 x2 / V1 = d/dt ln V1, so no velocity
+        v1, v2 = c.V10 + c.A1 * x1, c.V20 - c.A2 * x1
+        w1, w2 = c.V10 / v1, c.V20 / v2
+        z1, z2 = _orifice_z(x5, x3, x4, c.p_s)
+        u_c = np.array([x3, x4, math.log(v1 / c.V10), math.log(v2 / c.V20),
+                        w1 * x5 * z1, w2 * x5 * z2, w1 * (x3 - x4), w2 * (x3 - x4), w1 * x3, w2 * x4])
+        if n == 0:
             self.svf_c = np.array([self._svf_init(self.c_mats, u) for u in u_c])
-        yf = np.empty((3, 3))
-        yc = np.empty((9, 3))
-        for i in range(3):
-            self.svf_f[i], yf[i] = self._svf(self.f_mats, self.svf_f[i], u_f[i])
-        for i in range(9):
+        yc = np.empty((10, 3))
+        for i in range(10):
             self.svf_c[i], yc[i] = self._svf(self.c_mats, self.svf_c[i], u_c[i])
-        if n - 2 * SG_HALF < self.warm:
+        if n < self.warm:
             return
-
-        # force balance (eq 24-27), skipped while a reversal is inside the filter's memory
-        phi = np.array([yf[0, 2], yf[0, 1], yf[2, 0], yf[0, 0]]) * THETA_NOM_F / Y_NOM_F
-        y = yf[1, 0] / Y_NOM_F
-        if self.slow >= self.guard:
-            self.th_f, self.P_f, e = self._rls(self.th_f, self.P_f, phi, y, lam)
-            if math.isfinite(e):
-                self.rows[0] += 1.0
-                self.bc[0] = lam * self.bc[0] + 1.0
-                self._residual(0, y - phi @ self.th_f, lam)
-
-        # chambers (eq 28-38): two rows per sample, each forgetting by sqrt(lam)
-        lam2 = math.sqrt(lam)
-        v1 = c.V10 + a1 * c1
-        v2 = c.V20 - a2 * c1
+        lam2 = math.sqrt(o.lam)  # two rows per sample, each forgetting by sqrt(lam)
         s1 = THETA_NOM_C / Y_NOM_C
-        dp = yc[1, 0] - yc[2, 0]
-        phi = np.array([c.V10 * yc[1, 1] + a1 * (yc[3, 1] - yc[5, 0]), -yc[7, 0], dp, yc[1, 0]]) * s1
-        y = -a1 * yc[0, 1] / Y_NOM_C
+        phi = np.array([c.V10 * yc[0, 1], -yc[4, 0], yc[6, 0], yc[8, 0]]) * s1
+        y = -c.V10 * yc[2, 1] / Y_NOM_C
         self.th_c, self.P_c, e = self._rls(self.th_c, self.P_c, phi, y, lam2)
         ok = math.isfinite(e)
         if ok:
-            self.bc[1] = lam2 * self.bc[1] + v1 * v1
+            self.bc[1] = lam2 * self.bc[1] + c.V10 ** 2
             self.bc[2] = lam2 * self.bc[2]
             self._residual(1, y - phi @ self.th_c, lam2)
-        phi = np.array([c.V20 * yc[2, 1] - a2 * (yc[4, 1] - yc[6, 0]), yc[8, 0], -dp, yc[2, 0]]) * s1
-        y = a2 * yc[0, 1] / Y_NOM_C
+        phi = np.array([c.V20 * yc[1, 1], yc[5, 0], -yc[7, 0], yc[9, 0]]) * s1
+        y = -c.V20 * yc[3, 1] / Y_NOM_C
         self.th_c, self.P_c, e = self._rls(self.th_c, self.P_c, phi, y, lam2)
         if ok and math.isfinite(e):
             self.rows[1] += 1.0
             self.bc[1] = lam2 * self.bc[1]
-            self.bc[2] = lam2 * self.bc[2] + v2 * v2
+            self.bc[2] = lam2 * self.bc[2] + c.V20 ** 2
             self._residual(2, y - phi @ self.th_c, lam2)
+
+    def _force(self, n: int) -> None:
+        """Force balance row (eq 24-27) at the instant SG_HALF back (centred velocity)."""
+        c, o = self.config, self.options
+        j = np.arange(-SG_HALF, SG_HALF + 1, dtype=float)
+        x1_win = np.array([self._at(SG_HALF - int(i), 1) for i in j])
+        v = (j @ x1_win) / ((j @ j) * self.h)
+        c1, c3, c4 = (self._at(SG_HALF, ch) for ch in (1, 2, 3))
+        q1 = c.A1 * c3 - c.A2 * c4 - c.F_L
+        sg = float(np.sign(v))
+        v_noise = 3.0 * math.sqrt(self.noise[0] / 70.0 / ((j @ j) * self.h * self.h))
+        self.slow = 0.0 if abs(v) < max(o.v_stick, v_noise) else self.slow + 1.0
+        u_f = np.array([c1, q1, sg])
+        if n == 2 * SG_HALF:
+            self.svf_f = np.array([self._svf_init(self.f_mats, u) for u in u_f])
+        yf = np.empty((3, 3))
+        for i in range(3):
+            self.svf_f[i], yf[i] = self._svf(self.f_mats, self.svf_f[i], u_f[i])
+        if n - 2 * SG_HALF < self.warm or self.slow < self.guard:
+            return
+        # skipped while a reversal is inside the filter's memory
+        phi = np.array([yf[0, 2], yf[0, 1], yf[2, 0], yf[0, 0]]) * THETA_NOM_F / Y_NOM_F
+        y = yf[1, 0] / Y_NOM_F
+        self.th_f, self.P_f, e = self._rls(self.th_f, self.P_f, phi, y, o.lam)
+        if math.isfinite(e):
+            self.rows[0] += 1.0
+            self.bc[0] = o.lam * self.bc[0] + 1.0
+            self._residual(0, y - phi @ self.th_f, o.lam)
 
     # -- read-out ---------------------------------------------------------------------------
 
@@ -256,7 +263,7 @@ class NaiveIdentifier:
         lags = (self.n - 1 - np.arange(RING)) % RING
         st[O_RING:O_RING + RING * N_CH] = self.ring[lags].ravel()
         st[O_SVF_F:O_SVF_F + 3 * SVF_STATE] = self.svf_f.ravel()
-        st[O_SVF_C:O_SVF_C + 9 * SVF_STATE] = self.svf_c.ravel()
+        st[O_SVF_C:O_SVF_C + 10 * SVF_STATE] = self.svf_c.ravel()
         st[O_TH_F:O_TH_F + 4], st[O_P_F:O_P_F + 16] = self.th_f, self.P_f.ravel()
         st[O_TH_C:O_TH_C + 4], st[O_P_C:O_P_C + 16] = self.th_c, self.P_c.ravel()
         st[O_TH_V:O_TH_V + 5], st[O_P_V:O_P_V + 25] = self.th_v, self.P_v.ravel()

@@ -8,15 +8,17 @@ Our recipe (the paper's literal one is ``monitor.paper_recipe``), chosen by meas
   come from the filter state and never from differencing noisy samples:
 
       F[A1 x3 - A2 x4 - F_L] = m s^2F[x1] + (B + f_v) sF[x1] + f_c F[sign x2] + K_t F[x1]
-      -A1 sF[x1] = (1/beta_e) {V10 sF[x3] + A1 (sF[x1 x3] - F[x2 x3])} - theta F[x5 z1]
-                   + C_ip F[x3 - x4] + C_ep F[x3]
-      A2 sF[x1]  = (1/beta_e) {V20 sF[x4] - A2 (sF[x1 x4] - F[x2 x4])} + theta F[x5 z2]
-                   - C_ip F[x3 - x4] + C_ep F[x4]
+      -V10 sF[L1] = (1/beta_e) V10 sF[x3] - theta F[w1 x5 z1] + C_ip F[w1 (x3 - x4)] + C_ep F[w1 x3]
+      -V20 sF[L2] = (1/beta_e) V20 sF[x4] + theta F[w2 x5 z2] - C_ip F[w2 (x3 - x4)] + C_ep F[w2 x4]
 
-  using (V10 + A1 x1) x3' = V10 x3' + A1 ((x1 x3)' - x2 x3). sign(x2) and x2 x3 take the
-  velocity from a centred quadratic (Savitzky-Golay) fit over 2*SG_HALF+1 samples, so all
-  rows refer to the instant SG_HALF samples back: every target and regressor of a row is
-  aligned to the same instant.
+  with w_i = V_i0 / V_i(x1) and L_i = ln(V_i(x1) / V_i0): each chamber equation times
+  V_i0 / V_i(x1) (so the rows stay in flow units [m^3/s]), since A1 x2 / V1 = d/dt ln V1 (and -A2 x2 / V2 = d/dt ln V2). Every derivative
+  is then the filter's exact derivative of a sampled signal, and no velocity enters. Measured
+  noise-free on the paper's input: the form before, V1 x3' = V10 x3' + A1 ((x1 x3)' - x2 x3)
+  with x2 from the Savitzky-Golay fit, left C_d W/sqrt(rho) 0.0075 % off, this 0.001 %.
+  The chamber rows take the newest sample. The force rows take sign(x2) from a centred
+  quadratic (Savitzky-Golay) fit over 2*SG_HALF+1 samples, so they refer to the instant
+  SG_HALF samples back: every target and regressor of a row is aligned to the same instant.
   The pressure-rate regressor still carries filtered-differentiated sensor noise, which
   biases least squares toward zero (errors in variables: -0.5 % on 1/beta_e, C_d W/sqrt(rho)
   and C_ip at realistic noise). Bias compensation removes it: with S the accumulated
@@ -52,7 +54,7 @@ from .layout import (
     C_A1, C_A2, C_FL, C_KF, C_KP, C_PS, C_V10, C_V20, H_BC, H_H, H_IV, H_IV_START, H_LAM,
     H_NOISE_N, H_P0, H_VSTICK, H_GUARD, H_PMAX, H_STEP_TOL, H_WARM, HYPER_SIZE, N_CH, N_LAGS, O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_HIST,
     O_RES_W, O_RING, O_SLOW, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
-    RING, SG_HALF, STATE_SIZE, SVF_STATE,
+    N_CH_SVF, RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
 from .rls import riv_update, rls_update
 from .svf import noise_gram, svf_init, svf_matrices, svf_step
@@ -77,7 +79,12 @@ class IdentOptions(BaseModel):
     lam : float
         Forgetting factor per sample (1 = growing window; 0.9995 ~ 20 s memory at 100 Hz).
     warmup : float
-        Filter settling time before rows are used [s].
+        Filter settling time before rows are used [s]. The filters start as if each signal
+        had been constant forever; a rig already moving (or a kink in the first samples)
+        leaves a transient ~ (a t)^2 e^(-a t) in the rows. Measured noise-free on the paper's
+        input: chamber filters started 30 ms into the run left C_d W/sqrt(rho) -0.024 % off
+        after 0.4 s (0.001 % after 0.8 s), but waiting 0.8 s costs a fifth of the accuracy
+        under noise (the start from rest is the best-excited part of the run), so 0.4 s.
     step_tol : float
         |second difference of ug| [V] above which a valve row is skipped as a step.
     bias_compensation, instrumental_variables : bool
@@ -292,9 +299,30 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
                 st[O_ROWS + 2] += 1.0
                 _residual_stats(st, 3, y - _dot(phi5, th), lam)
 
+    phi = work[59:63]
+    # chambers in the log-volume form (module docstring): no velocity, so they take the newest
+    # sample and their filters start with the first one (a rig starting from rest then has no
+    # start-up transient; see warmup in IdentOptions)
+    a1, a2 = rc[C_A1], rc[C_A2]
+    x1, x3, x4, x5 = _ring(st, 0, 1), _ring(st, 0, 2), _ring(st, 0, 3), _ring(st, 0, 4)
+    w1 = 1.0 / (1.0 + a1 * x1 / rc[C_V10])
+    w2 = 1.0 / (1.0 - a2 * x1 / rc[C_V20])
+    z1, z2 = orifice_z(x5, x3, x4, rc[C_PS])
+    dp = x3 - x4
+    inputs_c = (x3, x4, math.log1p(a1 * x1 / rc[C_V10]), math.log1p(-a2 * x1 / rc[C_V20]),
+                w1 * x5 * z1, w2 * x5 * z2, w1 * dp, w2 * dp, w1 * x3, w2 * x4)
+    if n == 0:
+        for i in range(N_CH_SVF):
+            svf_init(m_c, st[O_SVF_C + SVF_STATE * i:O_SVF_C + SVF_STATE * (i + 1)], inputs_c[i])
+    yc = work[29:59].reshape((N_CH_SVF, 3))
+    for i in range(N_CH_SVF):
+        svf_step(m_c, st[O_SVF_C + SVF_STATE * i:O_SVF_C + SVF_STATE * (i + 1)], inputs_c[i], yc[i])
+    if n >= hyper[H_WARM]:
+        _chamber_rows(st, rc, yc, phi, lam, pmax, w)
+
     if n < 2 * SG_HALF:
         return
-    # the delayed instant c = n - SG_HALF: centred velocity and aligned signals
+    # force balance at the delayed instant c = n - SG_HALF: centred velocity and aligned signals
     num = 0.0
     den = 0.0
     for j in range(-SG_HALF, SG_HALF + 1):
@@ -302,36 +330,27 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
         den += j * j
     v = num / (den * hyper[H_H])
     c1 = _ring(st, SG_HALF, 1)
-    c3 = _ring(st, SG_HALF, 2)
-    c4 = _ring(st, SG_HALF, 3)
-    c5 = _ring(st, SG_HALF, 4)
-    a1, a2 = rc[C_A1], rc[C_A2]
-    q1 = a1 * c3 - a2 * c4 - rc[C_FL]
+    q1 = a1 * _ring(st, SG_HALF, 2) - a2 * _ring(st, SG_HALF, 3) - rc[C_FL]
     sg = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
-    z1, z2 = orifice_z(c5, c3, c4, rc[C_PS])
     v_noise = 3.0 * math.sqrt(st[O_NOISE] / 70.0 / (den * hyper[H_H] * hyper[H_H]))
     if abs(v) < max(hyper[H_VSTICK], v_noise):
         st[O_SLOW] = 0.0
     else:
         st[O_SLOW] += 1.0
     inputs_f = (c1, q1, sg)
-    inputs_c = (c1, c3, c4, c1 * c3, c1 * c4, v * c3, v * c4, c5 * z1, c5 * z2)
     if n == 2 * SG_HALF:
         for i in range(3):
             svf_init(m_f, st[O_SVF_F + SVF_STATE * i:O_SVF_F + SVF_STATE * (i + 1)], inputs_f[i])
-        for i in range(9):
-            svf_init(m_c, st[O_SVF_C + SVF_STATE * i:O_SVF_C + SVF_STATE * (i + 1)], inputs_c[i])
     yf = work[20:29].reshape((3, 3))
-    yc = work[29:56].reshape((9, 3))
     for i in range(3):
         svf_step(m_f, st[O_SVF_F + SVF_STATE * i:O_SVF_F + SVF_STATE * (i + 1)], inputs_f[i], yf[i])
-    for i in range(9):
-        svf_step(m_c, st[O_SVF_C + SVF_STATE * i:O_SVF_C + SVF_STATE * (i + 1)], inputs_c[i], yc[i])
-    if n - 2 * SG_HALF < hyper[H_WARM]:
-        return
+    if n - 2 * SG_HALF >= hyper[H_WARM]:
+        _force_rows(st, hyper, yf, phi, lam, pmax, w)
 
-    # force balance row, unless a reversal or a stick is inside the filter's memory
-    phi = work[56:60]
+
+@njit(cache=True, error_model="numpy")
+def _force_rows(st, hyper, yf, phi, lam, pmax, w):
+    """Force balance row, unless a reversal or a stick is inside the filter's memory."""
     force_ok = st[O_SLOW] >= hyper[H_GUARD]
     phi[0] = yf[0, 2] * THETA_NOM_F[0] / Y_NOM_F
     phi[1] = yf[0, 1] * THETA_NOM_F[1] / Y_NOM_F
@@ -346,35 +365,38 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
         st[O_BC] = lam * st[O_BC] + 1.0
         _residual_stats(st, 0, yv - _dot(phi, th), lam)
 
-    # chamber rows (two per sample, each forgetting by sqrt(lam))
+
+@njit(cache=True, error_model="numpy")
+def _chamber_rows(st, rc, yc, phi, lam, pmax, w):
+    """The two chamber rows of one instant, each forgetting by sqrt(lam)."""
     lam2 = math.sqrt(lam)
-    v1 = rc[C_V10] + a1 * c1
-    v2 = rc[C_V20] - a2 * c1
+    v10, v20 = rc[C_V10], rc[C_V20]
     th = st[O_TH_C:O_TH_C + 4]
     P = st[O_P_C:O_P_C + 16].reshape((4, 4))
     s1 = THETA_NOM_C / Y_NOM_C
-    dp = yc[1, 0] - yc[2, 0]
-    phi[0] = (rc[C_V10] * yc[1, 1] + a1 * (yc[3, 1] - yc[5, 0])) * s1[0]
-    phi[1] = -yc[7, 0] * s1[1]
-    phi[2] = dp * s1[2]
-    phi[3] = yc[1, 0] * s1[3]
-    yv = -a1 * yc[0, 1] / Y_NOM_C
+    # each chamber equation times V_i0 / V_i: the rows stay in flow units [m^3/s], as the paper weights them
+    phi[0] = v10 * yc[0, 1] * s1[0]
+    phi[1] = -yc[4, 0] * s1[1]
+    phi[2] = yc[6, 0] * s1[2]
+    phi[3] = yc[8, 0] * s1[3]
+    yv = -v10 * yc[2, 1] / Y_NOM_C
     e = rls_update(th, P, phi, yv, lam2, pmax, w)
     ok = math.isfinite(e)
     if ok:
-        st[O_BC + 1] = lam2 * st[O_BC + 1] + v1 * v1
+        # sensor noise reaches the pressure-rate regressor as V10 sF[n3]: its weight for the bias compensation
+        st[O_BC + 1] = lam2 * st[O_BC + 1] + v10 * v10
         st[O_BC + 2] = lam2 * st[O_BC + 2]
         _residual_stats(st, 1, yv - _dot(phi, th), lam2)
-    phi[0] = (rc[C_V20] * yc[2, 1] - a2 * (yc[4, 1] - yc[6, 0])) * s1[0]
-    phi[1] = yc[8, 0] * s1[1]
-    phi[2] = -dp * s1[2]
-    phi[3] = yc[2, 0] * s1[3]
-    yv = a2 * yc[0, 1] / Y_NOM_C
+    phi[0] = v20 * yc[1, 1] * s1[0]
+    phi[1] = yc[5, 0] * s1[1]
+    phi[2] = -yc[7, 0] * s1[2]
+    phi[3] = yc[9, 0] * s1[3]
+    yv = -v20 * yc[3, 1] / Y_NOM_C
     e = rls_update(th, P, phi, yv, lam2, pmax, w)
     if ok and math.isfinite(e):
         st[O_ROWS + 1] += 1.0
         st[O_BC + 1] = lam2 * st[O_BC + 1]
-        st[O_BC + 2] = lam2 * st[O_BC + 2] + v2 * v2
+        st[O_BC + 2] = lam2 * st[O_BC + 2] + v20 * v20
         _residual_stats(st, 2, yv - _dot(phi, th), lam2)
 
 

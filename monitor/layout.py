@@ -14,7 +14,7 @@ N_LAGS = 8  # residual autocorrelation lags used for honest standard errors
 N_STREAMS = 4  # residual streams: force, chamber 1, chamber 2, valve
 SVF_STATE = 6  # per filtered signal: the filter's 3 states and the last 3 inputs (monitor.svf)
 N_FORCE_SVF = 3  # x1, Q1, sign(v)
-N_CH_SVF = 9  # x1, x3, x4, x1*x3, x1*x4, v*x3, v*x4, x5*z1, x5*z2
+N_CH_SVF = 10  # x3, x4, L1, L2, w1 x5 z1, w2 x5 z2, w1 dp, w2 dp, w1 x3, w2 x4 (monitor.identify)
 
 _FIELDS = [
     ("N", 1),  # samples since the last signal reset
