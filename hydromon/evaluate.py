@@ -55,6 +55,7 @@ class Evaluation:
     recording: Recording
     assessment: Assessment
     refined: Refinement | None = None  # the whole-record prediction-error fit, when asked for
+    glitches: dict[str, int] | None = None  # sensor samples the outlier gate replaced, per sensor
 
     @property
     def status(self) -> str:
@@ -181,7 +182,7 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     pipe = Pipeline(config=recording.config, options=options, ranges=ranges)
     _events, assessment = pipe.run(recording.samples)
     ref = refine(recording.samples, recording.config, assessment.params) if refined else None
-    return Evaluation(recording, assessment, ref)
+    return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0))
 
 
 def _num(v: float):
@@ -201,6 +202,8 @@ def to_json(ev: Evaluation) -> dict:
         "params": {k: _num(a.params[k]) for k in PARAM_NAMES},
         "std_errors": {k: _num(a.std_errors[k]) for k in PARAM_NAMES},
     }
+    if ev.glitches is not None:  # an added key
+        out["glitches_replaced"] = ev.glitches
     if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
         r = ev.refined
         out["refined"] = {"ok": r.ok, "message": r.message,
@@ -237,6 +240,9 @@ def render(ev: Evaluation, console=None) -> None:
             row += [f"{ref.params[k]:.5g}", f"{ref.std_errors[k]:.3g}"] if k in REFINED else ["", ""]
         t.add_row(*row, PARAM_UNITS[k], grades.get(k, ""))
     console.print(t)
+    if ev.glitches and any(ev.glitches.values()):
+        what = ", ".join(f"{n} {k}" for k, n in ev.glitches.items() if n)
+        console.print(f"[yellow]sensor glitches replaced by their neighbours' mean: {what}[/yellow]")
     if ref is not None:
         console.print(f"refined: whole-record prediction-error fit, {'ok' if ref.ok else 'FAILED'}: {ref.message}; "
                       "the grade is the streaming pipeline's")

@@ -22,7 +22,7 @@ import numpy as np
 
 from monitor.identify import THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F, IdentOptions, Kernels
 from monitor.layout import (
-    N_CH, N_LAGS, N_STREAMS, O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
+    N_CH, N_LAGS, N_STREAMS, O_BC, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
     O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_SLOW, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RING,
     SG_HALF, STATE_SIZE, SVF_STATE,
 )
@@ -84,6 +84,10 @@ class NaiveIdentifier:
         self.res_e2 = np.zeros(N_STREAMS)
         self.res_hist = np.zeros((N_STREAMS, N_LAGS))
         self.res_cov = np.zeros((N_STREAMS, N_LAGS))
+        self.held = None  # the outlier gate's newest arrival, waiting for its right neighbour
+        self.gate_s = np.zeros(4)
+        self.gate_n = 0.0
+        self.outliers = np.zeros(4)
 
     # -- pieces -----------------------------------------------------------------------------
 
@@ -175,10 +179,39 @@ class NaiveIdentifier:
     # -- the streaming contract -------------------------------------------------------------
 
     def update(self, sample) -> None:
-        """Consume one sample (ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m])."""
+        """Take one sample (ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m]); the one before it is consumed."""
         sample = np.asarray(sample, dtype=np.float64)
         if sample.shape != (N_CH,):
             raise ValueError(f"sample must be (ug, x1, x3, x4, x5), got shape {sample.shape}")
+        held, self.held = self.held, sample.copy()
+        if held is None:
+            return
+        if self.n >= 1 and self.options.outlier_gate > 0:
+            held = self._gate(held, sample)
+        self._consume(held)
+
+    def _gate(self, mid: np.ndarray, right: np.ndarray) -> np.ndarray:
+        """A sensor value that jumps away from both neighbours by far more than usual: their mean."""
+        self.gate_n += 1.0
+        w = 1.0 / min(self.gate_n, self.options.noise_window)
+        out = mid.copy()
+        for c in range(4):
+            ch = c + 1
+            left = self._at(0, ch)
+            a, b = mid[ch] - left, mid[ch] - right[ch]
+            v = (a + b) ** 2
+            if self.gate_n > 50:
+                glitch = v > self.options.outlier_gate ** 2 * self.gate_s[c] and a * b > 0 \
+                    and min(abs(a), abs(b)) > 0.25 * abs(a + b)
+                if glitch:
+                    out[ch] = 0.5 * (left + right[ch])
+                    self.outliers[c] += 1.0
+                    continue
+                v = min(v, 100.0 * self.gate_s[c])
+            self.gate_s[c] += w * (v - self.gate_s[c])
+        return out
+
+    def _consume(self, sample: np.ndarray) -> None:
         n = self.n
         self.ring[n % RING] = sample
         self.n = n + 1
@@ -277,6 +310,10 @@ class NaiveIdentifier:
         st[O_RES_E2:O_RES_E2 + N_STREAMS] = self.res_e2
         st[O_RES_HIST:O_RES_HIST + N_STREAMS * N_LAGS] = self.res_hist.ravel()
         st[O_RES_COV:O_RES_COV + N_STREAMS * N_LAGS] = self.res_cov.ravel()
+        if self.held is not None:
+            st[O_GATE:O_GATE + N_CH], st[O_GATE_HAS] = self.held, 1.0
+        st[O_GATE_S:O_GATE_S + 4], st[O_GATE_N] = self.gate_s, self.gate_n
+        st[O_OUTLIERS:O_OUTLIERS + 4] = self.outliers
         return st
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:

@@ -32,6 +32,11 @@ _FIELDS = [
     ("BC", 3),  # force weight sum, chamber sum of V1^2, sum of V2^2 (forgetting-weighted)
     ("RES_W", N_STREAMS), ("RES_E2", N_STREAMS),
     ("RES_HIST", N_STREAMS * N_LAGS), ("RES_COV", N_STREAMS * N_LAGS),
+    ("GATE", N_CH),  # the newest arrival, held one sample for the outlier gate's lookahead
+    ("GATE_HAS", 1),  # 1 while GATE holds a sample
+    ("GATE_S", 4),  # running mean of squared centred 2nd differences of x1, x3, x4, x5
+    ("GATE_N", 1),
+    ("OUTLIERS", 4),  # samples the gate replaced, per sensor x1, x3, x4, x5
 ]
 
 OFFSETS: dict[str, tuple[int, int]] = {}
@@ -61,11 +66,17 @@ O_RES_W = OFFSETS["RES_W"][0]
 O_RES_E2 = OFFSETS["RES_E2"][0]
 O_RES_HIST = OFFSETS["RES_HIST"][0]
 O_RES_COV = OFFSETS["RES_COV"][0]
+O_GATE = OFFSETS["GATE"][0]
+O_GATE_HAS = OFFSETS["GATE_HAS"][0]
+O_GATE_S = OFFSETS["GATE_S"][0]
+O_GATE_N = OFFSETS["GATE_N"][0]
+O_OUTLIERS = OFFSETS["OUTLIERS"][0]
 
 # Per-rig constants row (SI): the rig config the equations need.
 (C_A1, C_A2, C_V10, C_V20, C_PS, C_FL, C_KP, C_KF) = range(8)
 RIG_CONST_SIZE = 8
 
 # Hyperparameter row shared by a fleet (see identify.IdentOptions).
-(H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD) = range(12)
-HYPER_SIZE = 12
+(H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD,
+ H_GATE2) = range(13)
+HYPER_SIZE = 13

@@ -22,7 +22,7 @@ from plant_sim.params import RigConfig
 from .estimates import estimates
 from .grading import Ranges, grade_kernel
 from .identify import WORK_SIZE, IdentOptions, Kernels, identify_step, new_state, reset_signals, rig_constants
-from .layout import O_ROWS, STATE_SIZE
+from .layout import O_OUTLIERS, O_ROWS, STATE_SIZE
 
 N_P = len(PARAM_NAMES)
 
@@ -372,6 +372,11 @@ class Fleet:
                     np.empty(cap, np.int64), np.empty(cap), np.empty((cap, N_P)), np.empty((cap, N_P)),
                     np.empty((cap, ng), np.int64), np.empty(cap, np.bool_))
         self._ev_cap = cap
+
+    def glitches(self, rig: int) -> dict[str, int]:
+        """Sensor samples of one rig the outlier gate replaced so far, per sensor."""
+        counts = self.states[rig, O_OUTLIERS:O_OUTLIERS + 4]
+        return {name: int(c) for name, c in zip(("x1", "x3", "x4", "x5"), counts)}
 
     def estimate(self, rig: int) -> Assessment:
         """Evaluate one rig now (does not move its hysteresis state)."""

@@ -60,6 +60,22 @@ def test_naive_state_matches_compiled_state_row(clean_run):
         np.testing.assert_allclose(st[o:o + n], ref[o:o + n], rtol=1e-6, atol=1e-6 * scale, err_msg=name)
 
 
+def test_naive_gates_glitches_like_the_compiled_kernel(clean_run):
+    rows = clean_run[:600].copy()
+    rows[300, 2] += 3e7  # a pressure glitch the outlier gate replaces
+    rows[450, 1] += 0.05  # and a position glitch
+    fleet = _run_compiled(rows)
+    naive = NaiveIdentifier()
+    for row in rows:
+        naive.update(row)
+    st, ref = naive.state_row(), fleet.states[0]
+    o, _ = OFFSETS["OUTLIERS"]
+    assert ref[o:o + 4].tolist() == [1, 1, 0, 0]
+    for name, (o, n) in OFFSETS.items():
+        scale = np.abs(ref[o:o + n]).max()
+        np.testing.assert_allclose(st[o:o + n], ref[o:o + n], rtol=1e-6, atol=1e-6 * scale, err_msg=name)
+
+
 def test_naive_follows_options_and_config():
     # a different forgetting factor, filter bandwidths and rig: the two still agree
     opts = IdentOptions(lam=0.999, a_force=30.0, a_chamber=20.0, warmup=0.2)

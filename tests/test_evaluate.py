@@ -11,7 +11,7 @@ from plant_sim.degradation import TABLE4_PAPER_GRADES, table4_group
 from plant_sim.profiles import PaperVariable
 from plant_sim.simulate import simulate
 
-KEYS = {"grade", "level", "confidence", "status", "params", "std_errors"}
+KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced"}
 
 
 @pytest.fixture(scope="module")
@@ -48,6 +48,21 @@ def test_cli_json_is_one_document_with_the_contract_keys(g4_csv, capsys):
     assert abs(doc["params"]["K_sv_omega_sv2"] - 1.6) < 0.01
     assert set(doc["params"]) == set(doc["std_errors"])
     assert "samples" in captured.err  # the log line goes to stderr
+    assert doc["glitches_replaced"] == {"x1": 0, "x3": 0, "x4": 0, "x5": 0}
+
+
+def test_sensor_glitches_are_reported_and_do_not_move_the_grade(g4_run, tmp_path, capsys):
+    samples = g4_run.samples.copy()
+    samples[500, 3] -= 2e7  # x4 glitch
+    samples[700, 4] += 1e-3  # x5 glitch
+    p = tmp_path / "glitched.csv"
+    p.write_text(csv_text(g4_run.t, samples))
+    assert main(["evaluate", str(p), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["glitches_replaced"] == {"x1": 0, "x3": 0, "x4": 1, "x5": 1}
+    assert doc["grade"] == "average"
+    assert main(["evaluate", str(p)]) == 0
+    assert "glitches replaced" in capsys.readouterr().out
 
 
 def test_short_recording_is_converging_with_null_level(g4_run, tmp_path, capsys):
