@@ -54,10 +54,10 @@ from .layout import (
     C_A1, C_A2, C_FL, C_KF, C_KP, C_PS, C_V10, C_V20, H_BC, H_H, H_IV, H_IV_START, H_LAM,
     H_NOISE_N, H_P0, H_VSTICK, H_GUARD, H_PMAX, H_STEP_TOL, H_WARM, H_GATE2, HYPER_SIZE, N_CH, N_LAGS, O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_HIST,
     O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_OUTLIERS, O_RES_W, O_RING, O_SLOW, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
-    N_CH_SVF, RING, SG_HALF, STATE_SIZE, SVF_STATE,
+    N_CH_SVF, RING, SG_HALF, STATE_SIZE,
 )
 from .rls import riv_update, rls_update
-from .svf import noise_gram, svf_init, svf_matrices, svf_step
+from .svf import noise_gram, svf_bank_init, svf_bank_step, svf_matrices
 
 N_PARAMS = 11
 
@@ -280,7 +280,7 @@ def _valve_row(st, rc, hyper, n, phi, z):
     return y, step
 
 
-WORK_SIZE = 72
+WORK_SIZE = 80
 GATE_SETTLE = 50  # samples of the gate's scale estimate before it judges any sample
 
 
@@ -334,7 +334,7 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     The outlier gate holds it for one sample; the sample before it is consumed now.
     ``work`` is scratch space of WORK_SIZE floats (so the per-sample path allocates nothing).
     """
-    s = work[64:69]
+    s = work[74:79]
     if _gate(st, hyper, ug, x1, x3, x4, x5, s):
         _consume(st, rc, hyper, m_f, m_c, s[0], s[1], s[2], s[3], s[4], work)
 
@@ -369,19 +369,19 @@ def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
     # sample and their filters start with the first one (a rig starting from rest then has no
     # start-up transient; see warmup in IdentOptions)
     a1, a2 = rc[C_A1], rc[C_A2]
-    x1, x3, x4, x5 = _ring(st, 0, 1), _ring(st, 0, 2), _ring(st, 0, 3), _ring(st, 0, 4)
     w1 = 1.0 / (1.0 + a1 * x1 / rc[C_V10])
     w2 = 1.0 / (1.0 - a2 * x1 / rc[C_V20])
     z1, z2 = orifice_z(x5, x3, x4, rc[C_PS])
     dp = x3 - x4
-    inputs_c = (x3, x4, math.log1p(a1 * x1 / rc[C_V10]), math.log1p(-a2 * x1 / rc[C_V20]),
-                w1 * x5 * z1, w2 * x5 * z2, w1 * dp, w2 * dp, w1 * x3, w2 * x4)
+    u = work[63:63 + N_CH_SVF]
+    u[0], u[1] = x3, x4
+    u[2], u[3] = math.log1p(a1 * x1 / rc[C_V10]), math.log1p(-a2 * x1 / rc[C_V20])
+    u[4], u[5] = w1 * x5 * z1, w2 * x5 * z2
+    u[6], u[7], u[8], u[9] = w1 * dp, w2 * dp, w1 * x3, w2 * x4
     if n == 0:
-        for i in range(N_CH_SVF):
-            svf_init(m_c, st[O_SVF_C + SVF_STATE * i:O_SVF_C + SVF_STATE * (i + 1)], inputs_c[i])
+        svf_bank_init(st, O_SVF_C, u)
     yc = work[29:59].reshape((N_CH_SVF, 3))
-    for i in range(N_CH_SVF):
-        svf_step(m_c, st[O_SVF_C + SVF_STATE * i:O_SVF_C + SVF_STATE * (i + 1)], inputs_c[i], yc[i])
+    svf_bank_step(m_c, st, O_SVF_C, u, yc)
     if n >= hyper[H_WARM]:
         _chamber_rows(st, rc, yc, phi, lam, pmax, w)
 
@@ -402,13 +402,12 @@ def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
         st[O_SLOW] = 0.0
     else:
         st[O_SLOW] += 1.0
-    inputs_f = (c1, q1, sg)
+    u = work[63:66]
+    u[0], u[1], u[2] = c1, q1, sg
     if n == 2 * SG_HALF:
-        for i in range(3):
-            svf_init(m_f, st[O_SVF_F + SVF_STATE * i:O_SVF_F + SVF_STATE * (i + 1)], inputs_f[i])
+        svf_bank_init(st, O_SVF_F, u)
     yf = work[20:29].reshape((3, 3))
-    for i in range(3):
-        svf_step(m_f, st[O_SVF_F + SVF_STATE * i:O_SVF_F + SVF_STATE * (i + 1)], inputs_f[i], yf[i])
+    svf_bank_step(m_f, st, O_SVF_F, u, yf)
     if n - 2 * SG_HALF >= hyper[H_WARM]:
         _force_rows(st, hyper, yf, phi, lam, pmax, w)
 

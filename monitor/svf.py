@@ -101,6 +101,35 @@ def svf_step(m: np.ndarray, x: np.ndarray, u: float, y: np.ndarray) -> None:
     x[3], x[4], x[5] = u0, u1, u
 
 
+@njit(cache=True, error_model="numpy")
+def svf_bank_step(m: np.ndarray, st: np.ndarray, base: int, u: np.ndarray, y: np.ndarray) -> None:
+    """``svf_step`` for len(u) signals of one filter whose states lie one after another in
+    ``st`` from ``base`` (SVF_STATE each); y (len(u), 3). The same arithmetic, with the matrix
+    read once and no per-signal views: the identifier's per-sample hot loop."""
+    m00, m01, m02, m03, m04, m05, m06 = m[0, 0], m[0, 1], m[0, 2], m[0, 3], m[0, 4], m[0, 5], m[0, 6]
+    m10, m11, m12, m13, m14, m15, m16 = m[1, 0], m[1, 1], m[1, 2], m[1, 3], m[1, 4], m[1, 5], m[1, 6]
+    m20, m21, m22, m23, m24, m25, m26 = m[2, 0], m[2, 1], m[2, 2], m[2, 3], m[2, 4], m[2, 5], m[2, 6]
+    for i in range(u.shape[0]):
+        o = base + SVF_STATE * i
+        x0, x1, x2, um1, u0, u1 = st[o], st[o + 1], st[o + 2], st[o + 3], st[o + 4], st[o + 5]
+        ui = u[i]
+        y0 = m00 * x0 + m01 * x1 + m02 * x2 + m03 * um1 + m04 * u0 + m05 * u1 + m06 * ui
+        y1 = m10 * x0 + m11 * x1 + m12 * x2 + m13 * um1 + m14 * u0 + m15 * u1 + m16 * ui
+        y2 = m20 * x0 + m21 * x1 + m22 * x2 + m23 * um1 + m24 * u0 + m25 * u1 + m26 * ui
+        y[i, 0], y[i, 1], y[i, 2] = y0, y1, y2
+        st[o], st[o + 1], st[o + 2] = y0, y1, y2
+        st[o + 3], st[o + 4], st[o + 5] = u0, u1, ui
+
+
+@njit(cache=True, error_model="numpy")
+def svf_bank_init(st: np.ndarray, base: int, u: np.ndarray) -> None:
+    """``svf_init`` for len(u) consecutive signal states from ``base``."""
+    for i in range(u.shape[0]):
+        o = base + SVF_STATE * i
+        st[o], st[o + 1], st[o + 2] = u[i], 0.0, 0.0
+        st[o + 3], st[o + 4], st[o + 5] = u[i], u[i], u[i]
+
+
 def impulse_response(m: np.ndarray, n: int = 0) -> np.ndarray:
     """(n, 3) impulse response of the three outputs (zero initial state); n defaults to 40/a-ish."""
     if n <= 0:

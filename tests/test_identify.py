@@ -10,7 +10,7 @@ from hydromon.contract import PARAM_NAMES
 from monitor.pipeline import Fleet, Pipeline
 from monitor.rls import RLS, rls_step
 from monitor.layout import SVF_STATE
-from monitor.svf import svf_init, svf_matrices, svf_step
+from monitor.svf import svf_bank_init, svf_bank_step, svf_init, svf_matrices, svf_step
 from plant_sim.degradation import TABLE4_PAPER_GRADES, table4_group
 from plant_sim.noise import noise_model
 from plant_sim.profiles import PaperIdentification, PaperVariable
@@ -63,6 +63,28 @@ def test_svf_at_rest_stays_at_rest_and_refuses_bad_bandwidths():
         np.testing.assert_allclose(y, [3.5e6, 0.0, 0.0], atol=1e-6 * 3.5e6)
     with pytest.raises(ValueError):
         svf_matrices(-1.0, 0.01)
+
+
+@settings(max_examples=30, deadline=None)
+@given(a=st.floats(5.0, 300.0), n=st.integers(1, 12), seed=st.integers(0, 2**31 - 1))
+def test_svf_bank_is_svf_step_signal_by_signal(a, n, seed):
+    """The kernels' fused bank step is bit for bit the reference step on each signal."""
+    rng = np.random.default_rng(seed)
+    m = svf_matrices(a, 0.01)
+    u = rng.normal(size=(40, n)) * 10.0 ** rng.uniform(-6, 7, size=n)
+    base = 3
+    bank = np.zeros(base + n * SVF_STATE)
+    svf_bank_init(bank, base, u[0])
+    refs = [np.zeros(SVF_STATE) for _ in range(n)]
+    for x, u0 in zip(refs, u[0]):
+        svf_init(m, x, u0)
+    yb, yr = np.zeros((n, 3)), np.zeros(3)
+    for row in u[1:]:
+        svf_bank_step(m, bank, base, row, yb)
+        for i, x in enumerate(refs):
+            svf_step(m, x, row[i], yr)
+            assert np.array_equal(yb[i], yr)
+            assert np.array_equal(bank[base + SVF_STATE * i:base + SVF_STATE * (i + 1)], x)
 
 
 def _catmull_rom(p0, p1, p2, p3, tau):
