@@ -18,7 +18,7 @@ import numpy as np
 
 from hydromon.contract import PARAM_NAMES, SAMPLE_LIMITS
 from monitor.grading import Ranges
-from monitor.identify import IdentOptions
+from monitor.identify import IdentOptions, gated
 from monitor.pipeline import Assessment, Pipeline
 from monitor.refine import REFINED, Refinement, refine
 from plant_sim.params import RigConfig
@@ -181,7 +181,8 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     (``monitor.refine``), started from the pipeline's estimates."""
     pipe = Pipeline(config=recording.config, options=options, ranges=ranges)
     _events, assessment = pipe.run(recording.samples)
-    ref = refine(recording.samples, recording.config, assessment.params) if refined else None
+    # the refinement fits what the streaming estimates saw: sensor glitches replaced
+    ref = refine(gated(recording.samples, options)[0], recording.config, assessment.params) if refined else None
     return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0))
 
 

@@ -327,6 +327,35 @@ def _gate(st, hyper, ug, x1, x3, x4, x5, out):
 
 
 @njit(cache=True, error_model="numpy")
+def _gate_record(st, hyper, samples, out):
+    s = np.empty(N_CH)
+    k = 0
+    for i in range(samples.shape[0]):
+        if _gate(st, hyper, samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4], s):
+            out[k] = s
+            k += 1
+            for ch in range(N_CH):  # the released sample is the next one's left neighbour
+                st[O_RING + ch] = s[ch]
+            st[O_N] += 1.0
+    return k
+
+
+def gated(samples: np.ndarray, options: IdentOptions | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A record (N, 5) as the identifier sees it after its outlier gate, and the glitches
+    replaced per sensor (x1, x3, x4, x5). The last sample, which the gate still holds in a
+    stream, comes back as it is. For whole-record methods (``monitor.refine``) that should
+    see what the streaming estimates saw."""
+    samples = np.ascontiguousarray(samples, dtype=np.float64)
+    if samples.ndim != 2 or samples.shape[1] != N_CH:
+        raise ValueError(f"samples must be (N, {N_CH}) = (ug, x1, x3, x4, x5), got {samples.shape}")
+    hyper = Kernels(options or IdentOptions(), 0.01).hyper  # the gate needs no sample period
+    st = new_state(hyper)
+    out = samples.copy()
+    _gate_record(st, hyper, samples, out)
+    return out, st[O_OUTLIERS:O_OUTLIERS + 4].copy()
+
+
+@njit(cache=True, error_model="numpy")
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
                   ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
     """Take one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place.

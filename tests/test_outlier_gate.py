@@ -110,3 +110,21 @@ def test_a_lone_jump_is_replaced_a_step_is_not(col, k, size, sign, freqs):
     step[k:, col] += sign * size * unit
     _, counts = _run(step)
     assert counts.sum() == 0
+
+
+def test_gated_record_is_what_the_stream_saw(realistic_run):
+    """monitor.identify.gated (for whole-record methods) replaces the same samples the stream does."""
+    from monitor.identify import gated
+
+    dirty = _glitched(realistic_run.samples)
+    cleaned, counts = gated(dirty)
+    _, stream_counts = _run(dirty)
+    assert counts.tolist() == stream_counts.tolist() == [1, 1, 1, 1]
+    changed = np.argwhere(cleaned != dirty)
+    assert sorted(map(tuple, changed)) == sorted((k, col) for k, col, _ in GLITCHES)
+    for k, col, _ in GLITCHES:
+        assert cleaned[k, col] == 0.5 * (dirty[k - 1, col] + dirty[k + 1, col])
+    # and the stream's estimates from the cleaned record are those from the glitched one
+    a, _ = _run(cleaned)
+    b, _ = _run(dirty)
+    assert a.params == b.params
