@@ -1,7 +1,9 @@
 """Grade one recording: a CSV (t,ug,x1,x3,x4,x5 in SI) or an MCAP file (the CSV/MCAP edge).
 
 ``load_recording`` reads and validates (header, finite numbers, strictly increasing t,
-uniform sampling at the rig's rate within 1 %), ``evaluate`` runs the monitor pipeline
+sampling at the rig's rate within 1 %; a gap of whole sample periods is allowed and, as on
+the bus, restarts the filters; an MCAP's invalid samples are skipped and counted),
+``evaluate`` runs the monitor pipeline
 over the samples and returns an :class:`Evaluation`; ``to_json`` and ``render`` present it
 (DESIGN.md section 6: ``{"grade", "level", "confidence", "status", "params", "std_errors"}``).
 """
@@ -11,7 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +48,9 @@ class Recording:
     samples: np.ndarray
     config: RigConfig
     source: str
+    restarts: tuple[int, ...] = ()  # indices of samples that follow a gap
+    missing: int = 0  # samples missing in those gaps
+    rejected: int = 0  # invalid samples skipped (MCAP)
 
 
 @dataclass(frozen=True)
@@ -111,8 +116,10 @@ def read_csv(src, name: str = "<csv>") -> np.ndarray:
     return np.array(rows, dtype=np.float64)
 
 
-def check_sampling(t: np.ndarray, sample_rate: float, where=lambda i: f"sample {i}") -> None:
-    """t [s] must increase strictly, every interval within RATE_TOL of 1/sample_rate [Hz].
+def check_sampling(t: np.ndarray, sample_rate: float, where=lambda i: f"sample {i}") -> tuple[list[int], int]:
+    """t [s] must increase strictly, every interval within RATE_TOL of a whole number of
+    sample periods 1/sample_rate [Hz]. Returns the indices of samples after a gap (an
+    interval of 2 periods or more) and the number of samples missing in the gaps.
 
     ``where(i)`` names sample i in the error (e.g. its CSV line).
     """
@@ -123,11 +130,27 @@ def check_sampling(t: np.ndarray, sample_rate: float, where=lambda i: f"sample {
         i = int(bad[0]) + 1
         raise ValueError(f"{where(i)}: t = {float(t[i])!r} s does not increase strictly "
                          f"(previous {float(t[i - 1])!r} s)")
-    bad = np.flatnonzero(np.abs(dt - h) > RATE_TOL * h)
+    periods = np.rint(dt / h)
+    bad = np.flatnonzero(np.abs(dt - periods * h) > RATE_TOL * h)
     if bad.size:
         i = int(bad[0]) + 1
         raise ValueError(f"{where(i)}: t = {float(t[i])!r} s is {float(dt[i - 1])!r} s after the previous "
                          f"sample; the rig samples every {h!r} s ({sample_rate:g} Hz, 1 % tolerance)")
+    gaps = np.flatnonzero(periods > 1)
+    return [int(i) + 1 for i in gaps], int(np.sum(periods[gaps] - 1))
+
+
+def _seq_gaps(seq: np.ndarray, name: str) -> tuple[list[int], int]:
+    """Samples after a gap in the rig's sequence numbers, and how many are missing."""
+    d = np.diff(seq)
+    back = np.flatnonzero(d <= 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise ValueError(f"{name}: seq goes from {int(seq[i - 1])} back to {int(seq[i])} at sample {i} "
+                         "(the rig restarted): evaluate one run at a time, or replay the recording "
+                         "(hydromon replay --direct), which handles restarts")
+    gaps = np.flatnonzero(d > 1)
+    return [int(i) + 1 for i in gaps], int(np.sum(d[gaps] - 1))
 
 
 def load_recording(path: str | Path, rig: str | None = None, config: RigConfig | None = None) -> Recording:
@@ -145,8 +168,9 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
             raise ValueError("--rig selects a rig of an MCAP recording; a CSV holds one rig")
         data = read_csv(path)
         config = config or RigConfig()
-        check_sampling(data[:, 0], config.sample_rate, lambda i: f"{name} line {i + 2}")
-        return Recording("csv", data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name)
+        restarts, missing = check_sampling(data[:, 0], config.sample_rate, lambda i: f"{name} line {i + 2}")
+        return Recording("csv", data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
+                         tuple(restarts), missing)
     if suffix == ".mcap":
         try:
             from hydromon import mcap_io
@@ -155,7 +179,8 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         if not path.exists():
             raise FileNotFoundError(f"{name}: no such file")
         try:
-            rig_id, data, _seq = mcap_io.read_samples(str(path), rig=rig)
+            rejected: list[str] = []
+            rig_id, data, seq = mcap_io.read_samples(str(path), rig=rig, rejected=rejected)
         except ValueError as exc:
             hint = " (pick one with --rig ID)" if "several rigs" in str(exc) else ""
             raise ValueError(f"{name}: {exc}{hint}") from None
@@ -169,8 +194,12 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         bad = np.argwhere(~np.isfinite(data))
         if bad.size:
             raise ValueError(f"{name}: sample {int(bad[0, 0])} of rig {rig_id!r} is not finite")
+        # gaps come from the sequence numbers (they also cover skipped invalid samples); the
+        # time stamps must still sit on the rig's sample grid
         check_sampling(data[:, 0], config.sample_rate, lambda i: f"{name} rig {rig_id!r} sample {i}")
-        return Recording(rig_id, data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name)
+        restarts, missing = _seq_gaps(seq, f"{name} rig {rig_id!r}")
+        return Recording(rig_id, data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
+                         tuple(restarts), missing, len(rejected))
     raise ValueError(f"{name}: unknown file type {path.suffix!r}; give a .csv (t,ug,x1,x3,x4,x5) or .mcap")
 
 
@@ -180,10 +209,20 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     With ``refined``, also fit the whole model to the record by prediction error
     (``monitor.refine``), started from the pipeline's estimates."""
     pipe = Pipeline(config=recording.config, options=options, ranges=ranges)
-    _events, assessment = pipe.run(recording.samples)
-    # the refinement fits what the streaming estimates saw: sensor glitches replaced
-    ref = refine(gated(recording.samples, options)[0], recording.config, assessment.params) if refined else None
+    _events, assessment = pipe.run(recording.samples, recording.restarts)
+    ref = _refine(recording, options, assessment) if refined else None
     return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0))
+
+
+def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:
+    """The whole-record fit on what the streaming estimates saw (sensor glitches replaced),
+    over the longest stretch without a gap (the fit integrates the model from sample to sample)."""
+    bounds = [0, *recording.restarts, len(recording.samples)]
+    lo, hi = max(zip(bounds[:-1], bounds[1:]), key=lambda b: b[1] - b[0])
+    ref = refine(gated(recording.samples[lo:hi], options)[0], recording.config, assessment.params)
+    if recording.restarts:
+        ref = replace(ref, message=f"{ref.message} (samples {lo}..{hi - 1}, the longest stretch without a gap)")
+    return ref
 
 
 def _num(v: float):
@@ -203,8 +242,10 @@ def to_json(ev: Evaluation) -> dict:
         "params": {k: _num(a.params[k]) for k in PARAM_NAMES},
         "std_errors": {k: _num(a.std_errors[k]) for k in PARAM_NAMES},
     }
-    if ev.glitches is not None:  # an added key
+    if ev.glitches is not None:  # added keys
         out["glitches_replaced"] = ev.glitches
+    r = ev.recording
+    out["gaps"] = {"count": len(r.restarts), "missing_samples": r.missing, "rejected_samples": r.rejected}
     if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
         r = ev.refined
         out["refined"] = {"ok": r.ok, "message": r.message,
@@ -241,6 +282,9 @@ def render(ev: Evaluation, console=None) -> None:
             row += [f"{ref.params[k]:.5g}", f"{ref.std_errors[k]:.3g}"] if k in REFINED else ["", ""]
         t.add_row(*row, PARAM_UNITS[k], grades.get(k, ""))
     console.print(t)
+    if r.restarts or r.rejected:
+        console.print(f"[yellow]{len(r.restarts)} gap(s), {r.missing} sample(s) missing, {r.rejected} invalid "
+                      "sample(s) skipped: the filters restarted after each gap, the estimates carried on[/yellow]")
     if ev.glitches and any(ev.glitches.values()):
         what = ", ".join(f"{n} {k}" for k, n in ev.glitches.items() if n)
         console.print(f"[yellow]sensor glitches replaced by their neighbours' mean: {what}[/yellow]")

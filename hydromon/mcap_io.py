@@ -376,13 +376,15 @@ def _rig_topics(src, leaf: str, rig: str | None) -> dict[str, str]:
     return found
 
 
-def read_samples(src, rig: str | None = None) -> tuple[str, np.ndarray, np.ndarray]:
+def read_samples(src, rig: str | None = None, rejected: list | None = None) -> tuple[str, np.ndarray, np.ndarray]:
     """One rig's samples: ``(rig_id, data, seq)``.
 
     ``data`` is float64 ``(N, 6)`` with columns :data:`SAMPLE_COLUMNS` (t [s], ug [V],
     x1 [m], x3 [Pa], x4 [Pa], x5 [m]), ``seq`` int64 ``(N,)``, both in log-time order.
     ``rig`` may be None only if the recording holds one rig. Every payload is validated
-    against :class:`~hydromon.contract.Sample`; a bad one raises :class:`RecordingError`.
+    against :class:`~hydromon.contract.Sample`; a bad one raises :class:`RecordingError`,
+    unless a ``rejected`` list is given: then it is skipped and described there (as the
+    live monitor drops it), and its seq is missing from ``seq``.
     """
     rigs = _rig_topics(src, "sample", rig)
     if not rigs:
@@ -398,8 +400,12 @@ def read_samples(src, rig: str | None = None) -> tuple[str, np.ndarray, np.ndarr
         try:
             s = Sample.model_validate_json(payload)
         except ValidationError as exc:
-            raise RecordingError(f"bad sample on {key} at log time {log_ns} ns: "
-                                 f"{exc.errors()[0].get('loc')}: {exc.errors()[0].get('msg')}") from None
+            why = (f"bad sample on {key} at log time {log_ns} ns: "
+                   f"{exc.errors()[0].get('loc')}: {exc.errors()[0].get('msg')}")
+            if rejected is None:
+                raise RecordingError(why) from None
+            rejected.append(why)
+            continue
         rows.append((s.t, s.ug, s.x1, s.x3, s.x4, s.x5))
         seqs.append(s.seq)
     data = np.array(rows, dtype=np.float64).reshape(len(rows), len(SAMPLE_COLUMNS))

@@ -189,6 +189,13 @@ class Events:
     def __len__(self) -> int:
         return len(self.rig)
 
+    @staticmethod
+    def concat(parts: list[Events], offsets: list[int]) -> Events:
+        """One Events of several updates; ``offsets`` shift each part's sample indices."""
+        f = {k: np.concatenate([getattr(p, k) for p in parts]) for k in Events.__dataclass_fields__}
+        f["sample"] = np.concatenate([p.sample + o for p, o in zip(parts, offsets)])
+        return Events(**f)
+
     def assessment(self, i: int, graded: tuple) -> Assessment:
         return Assessment(
             count=int(self.counts[i]), level=int(self.level[i]), confidence=float(self.confidence[i]),
@@ -413,14 +420,25 @@ class Pipeline:
         ev = self.fleet.update(np.zeros(1, np.int64), s)
         return ev.assessment(0, self.fleet.graded) if len(ev) else None
 
-    def run(self, samples: np.ndarray) -> tuple[Events, Assessment]:
+    def run(self, samples: np.ndarray, restarts=()) -> tuple[Events, Assessment]:
+        """Consume a record; ``restarts`` are the indices of samples that follow a gap (the
+        filters restart there, the estimates carry on, as the monitor does on the bus)."""
         samples = np.asarray(samples, dtype=float)
         if samples.ndim != 2 or samples.shape[1] != 5:
             raise ValueError(f"samples must be (N, 5): ug, x1, x3, x4, x5; got {samples.shape}")
         if not np.all(np.isfinite(samples)):
             bad = int(np.argwhere(~np.isfinite(samples))[0, 0])
             raise ValueError(f"non-finite value in sample {bad}")
-        ev = self.fleet.update(np.zeros(len(samples), np.int64), samples)
+        cuts = sorted(set(int(i) for i in restarts))
+        if cuts and (cuts[0] <= 0 or cuts[-1] >= len(samples)):
+            raise ValueError(f"restarts must be inside the record (1..{len(samples) - 1}), got {cuts}")
+        bounds = [0, *cuts, len(samples)]
+        parts = []
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            if lo:
+                self.fleet.reset_signals(0)
+            parts.append(self.fleet.update(np.zeros(hi - lo, np.int64), samples[lo:hi]))
+        ev = parts[0] if len(parts) == 1 else Events.concat(parts, bounds[:-1])
         return ev, self.fleet.estimate(0)
 
 

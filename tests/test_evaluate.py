@@ -11,7 +11,7 @@ from plant_sim.degradation import TABLE4_PAPER_GRADES, table4_group
 from plant_sim.profiles import PaperVariable
 from plant_sim.simulate import simulate
 
-KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced"}
+KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps"}
 
 
 @pytest.fixture(scope="module")
@@ -165,3 +165,64 @@ def test_multi_rig_mcap_needs_rig(g4_run, tmp_path):
     with pytest.raises(ValueError, match="several rigs.*--rig ID"):
         load_recording(p)
     assert load_recording(p, rig="b").rig == "b"
+
+
+def _gappy_mcap(run, path, drop=range(400, 430), invalid=(600,)):
+    """The run as an MCAP with samples dropped (a gap in seq and t) and invalid ones."""
+    from hydromon.mcap_io import RecordingWriter
+
+    msgs = []
+    with open(path, "wb") as f, RecordingWriter(f) as w:
+        for k, (t, row) in enumerate(zip(run.t, run.samples)):
+            if k in drop:
+                continue
+            payload = dict(seq=k, t=float(t), **dict(zip(CSV_COLUMNS[1:], map(float, row))))
+            if k in invalid:
+                payload["x3"] = 5e9  # beyond the contract's limit: the monitor drops it
+            data = json.dumps(payload).encode()
+            t_ns = int(round(t * 1e9))
+            w.write("hydro/rig/g4/sample", data, t_ns, t_ns)
+            msgs.append(("hydro/rig/g4/sample", data))
+    return msgs
+
+
+def test_gaps_and_invalid_samples_are_evaluated_as_the_live_monitor_takes_them(g4_run, tmp_path, capsys):
+    from hydromon.monitornode import MonitorCore
+
+    p = tmp_path / "gappy.mcap"
+    msgs = _gappy_mcap(g4_run, p)
+    rec = load_recording(p)
+    assert rec.restarts == (400, 570) and rec.missing == 31 and rec.rejected == 1
+    ev = evaluate(rec)
+    # the live core on the same messages: filters restart at each gap, the estimates carry on
+    core = MonitorCore("hydro")
+    core.process(msgs)
+    live = core.fleet.estimate(core.fleet.ids.index("g4"))
+    assert ev.assessment.params == live.params
+    assert main(["evaluate", str(p), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["gaps"] == {"count": 2, "missing_samples": 31, "rejected_samples": 1}
+    assert doc["grade"] == "average"
+    assert main(["evaluate", str(p)]) == 0
+    assert "2 gap(s), 31 sample(s) missing, 1 invalid" in capsys.readouterr().out
+
+
+def test_csv_gaps_of_whole_periods_restart_the_filters(g4_run, tmp_path):
+    keep = np.r_[0:300, 320:len(g4_run.t)]
+    p = tmp_path / "gap.csv"
+    p.write_text(csv_text(g4_run.t[keep], g4_run.samples[keep]))
+    rec = load_recording(p)
+    assert rec.restarts == (300,) and rec.missing == 20
+    assert evaluate(rec).assessment.grade == "average"
+
+
+def test_a_restarted_rig_is_refused_with_a_hint(g4_run, tmp_path):
+    from hydromon.mcap_io import RecordingWriter
+
+    p = tmp_path / "restart.mcap"
+    with open(p, "wb") as f, RecordingWriter(f) as w:
+        for k in range(6):
+            payload = dict(seq=k % 3, t=k * 0.01, ug=2.0, x1=0.0, x3=1e6, x4=1e6, x5=0.0)
+            w.write("hydro/rig/a/sample", json.dumps(payload).encode(), k * 10**7, k * 10**7)
+    with pytest.raises(ValueError, match="back to 0 at sample 3.*replay --direct"):
+        load_recording(p)
