@@ -281,10 +281,15 @@ def _valve_row(st, rc, hyper, n, phi, z):
 
 
 WORK_SIZE = 80
+# The per-sample pieces (_gate, identify_step, _consume, _force_rows, _chamber_rows) are inlined
+# into their caller at numba's IR level: as separate compiled calls the 1000-rig batch ran at
+# 782,000 samples/s, inlined at 925,000 (one thread, process time, same minutes); a fresh
+# compile still takes about 22 s. Inlining the small helpers as well tripled the compile time
+# for 3 % more.
 GATE_SETTLE = 50  # samples of the gate's scale estimate before it judges any sample
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _gate(st, hyper, ug, x1, x3, x4, x5, out):
     """Outlier gate with one sample of lookahead: hold the arrival, release the one before.
 
@@ -355,7 +360,7 @@ def gated(samples: np.ndarray, options: IdentOptions | None = None) -> tuple[np.
     return out, st[O_OUTLIERS:O_OUTLIERS + 4].copy()
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
                   ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
     """Take one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place.
@@ -368,7 +373,7 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
         _consume(st, rc, hyper, m_f, m_c, s[0], s[1], s[2], s[3], s[4], work)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
     """Consume one released sample: noise estimate, valve, chamber and force rows."""
     n = int(st[O_N])
@@ -441,7 +446,7 @@ def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
         _force_rows(st, hyper, yf, phi, lam, pmax, w)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _force_rows(st, hyper, yf, phi, lam, pmax, w):
     """Force balance row, unless a reversal or a stick is inside the filter's memory."""
     force_ok = st[O_SLOW] >= hyper[H_GUARD]
@@ -459,7 +464,7 @@ def _force_rows(st, hyper, yf, phi, lam, pmax, w):
         _residual_stats(st, 0, yv - _dot(phi, th), lam)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _chamber_rows(st, rc, yc, phi, lam, pmax, w):
     """The two chamber rows of one instant, each forgetting by sqrt(lam)."""
     lam2 = math.sqrt(lam)
