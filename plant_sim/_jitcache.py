@@ -4,6 +4,8 @@ numba keys a cached function on its own file only: a kernel that calls a changed
 another module (monitor.pipeline calling monitor.grading, for one) would otherwise load stale
 machine code after an upgrade. Keying the whole directory on every core source file makes any
 change recompile everything once. An explicit NUMBA_CACHE_DIR from the user wins.
+Directories of other versions untouched for STALE_DAYS are removed (each is a few MB, and a
+developer leaves one behind per change).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 _ROOT = Path(__file__).resolve().parent.parent
 _PACKAGES = ("plant_sim", "monitor")
+STALE_DAYS = 7.0
 
 
 def _source_hash() -> str:
@@ -25,6 +28,27 @@ def _source_hash() -> str:
     return h.hexdigest()[:16]
 
 
+def prune(base: Path, keep: Path, now: float, stale_days: float = STALE_DAYS) -> list[Path]:
+    """Remove the cache directories under ``base`` other than ``keep`` whose newest file is
+    older than ``stale_days``; returns them. Never raises (a cache is not worth an error)."""
+    import shutil
+
+    removed = []
+    try:
+        dirs = [d for d in base.iterdir() if d.is_dir() and d != keep]
+    except OSError:
+        return removed
+    for d in dirs:
+        try:
+            newest = max([d.stat().st_mtime] + [f.stat().st_mtime for f in d.iterdir()])
+        except OSError:
+            continue
+        if now - newest > stale_days * 86400.0:
+            shutil.rmtree(d, ignore_errors=True)
+            removed.append(d)
+    return removed
+
+
 def configure() -> None:
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
@@ -34,6 +58,9 @@ def configure() -> None:
         path.mkdir(parents=True, exist_ok=True)
     except OSError:
         return  # read-only home: numba falls back to __pycache__
+    import time
+
+    prune(base, path, time.time())
     os.environ["NUMBA_CACHE_DIR"] = str(path)
     import sys
 
