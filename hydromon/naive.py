@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from monitor.identify import THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F, IdentOptions, Kernels
+from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F, IdentOptions, Kernels
 from monitor.layout import (
     N_CH, N_LAGS, N_STREAMS, O_BC, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
     O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_SLOW, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RING,
@@ -227,10 +227,11 @@ class NaiveIdentifier:
         c, o = self.config, self.options
         x1, x3, x4, x5 = (self._at(0, ch) for ch in (1, 2, 3, 4))
         # each chamber equation divided by its volume: A1 x2 / V1 = d/dt ln V1, so no velocity
-        v1, v2 = c.V10 + c.A1 * x1, c.V20 - c.A2 * x1
-        w1, w2 = c.V10 / v1, c.V20 / v2
+        r1 = max(c.A1 * x1 / c.V10, V_MIN - 1.0)  # a chamber never below V_MIN of its volume
+        r2 = max(-c.A2 * x1 / c.V20, V_MIN - 1.0)
+        w1, w2 = 1.0 / (1.0 + r1), 1.0 / (1.0 + r2)
         z1, z2 = _orifice_z(x5, x3, x4, c.p_s)
-        u_c = np.array([x3, x4, math.log(v1 / c.V10), math.log(v2 / c.V20),
+        u_c = np.array([x3, x4, math.log1p(r1), math.log1p(r2),
                         w1 * x5 * z1, w2 * x5 * z2, w1 * (x3 - x4), w2 * (x3 - x4), w1 * x3, w2 * x4])
         if n == 0:
             self.svf_c = np.array([self._svf_init(self.c_mats, u) for u in u_c])

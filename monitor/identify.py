@@ -12,8 +12,9 @@ Our recipe (the paper's literal one is ``monitor.paper_recipe``), chosen by meas
       -V20 sF[L2] = (1/beta_e) V20 sF[x4] + theta F[w2 x5 z2] - C_ip F[w2 (x3 - x4)] + C_ep F[w2 x4]
 
   with w_i = V_i0 / V_i(x1) and L_i = ln(V_i(x1) / V_i0): each chamber equation times
-  V_i0 / V_i(x1) (so the rows stay in flow units [m^3/s]), since A1 x2 / V1 = d/dt ln V1 (and -A2 x2 / V2 = d/dt ln V2). Every derivative
-  is then the filter's exact derivative of a sampled signal, and no velocity enters. Measured
+  V_i0 / V_i(x1) (so the rows stay in flow units [m^3/s]), since A1 x2 / V1 = d/dt ln V1
+  (and -A2 x2 / V2 = d/dt ln V2). Every derivative is then the filter's exact derivative of
+  a sampled signal, and no velocity enters. Measured
   noise-free on the paper's input: the form before, V1 x3' = V10 x3' + A1 ((x1 x3)' - x2 x3)
   with x2 from the Savitzky-Golay fit, left C_d W/sqrt(rho) 0.0075 % off, this 0.001 %.
   The chamber rows take the newest sample. The force rows take sign(x2) from a centred
@@ -286,6 +287,7 @@ WORK_SIZE = 80
 # 782,000 samples/s, inlined at 925,000 (one thread, process time, same minutes); a fresh
 # compile still takes about 22 s. Inlining the small helpers as well tripled the compile time
 # for 3 % more.
+V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
 GATE_SETTLE = 50  # samples of the gate's scale estimate before it judges any sample
 
 
@@ -403,13 +405,17 @@ def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
     # sample and their filters start with the first one (a rig starting from rest then has no
     # start-up transient; see warmup in IdentOptions)
     a1, a2 = rc[C_A1], rc[C_A2]
-    w1 = 1.0 / (1.0 + a1 * x1 / rc[C_V10])
-    w2 = 1.0 / (1.0 - a2 * x1 / rc[C_V20])
+    # V_i / V_i0 - 1; an x1 that would empty a chamber is not physical (wrong config or units):
+    # clamped so the filters stay finite (a NaN would stay in them until the next gap)
+    r1 = max(a1 * x1 / rc[C_V10], V_MIN - 1.0)
+    r2 = max(-a2 * x1 / rc[C_V20], V_MIN - 1.0)
+    w1 = 1.0 / (1.0 + r1)
+    w2 = 1.0 / (1.0 + r2)
     z1, z2 = orifice_z(x5, x3, x4, rc[C_PS])
     dp = x3 - x4
     u = work[63:63 + N_CH_SVF]
     u[0], u[1] = x3, x4
-    u[2], u[3] = math.log1p(a1 * x1 / rc[C_V10]), math.log1p(-a2 * x1 / rc[C_V20])
+    u[2], u[3] = math.log1p(r1), math.log1p(r2)
     u[4], u[5] = w1 * x5 * z1, w2 * x5 * z2
     u[6], u[7], u[8], u[9] = w1 * dp, w2 * dp, w1 * x3, w2 * x4
     if n == 0:

@@ -128,3 +128,19 @@ def test_gated_record_is_what_the_stream_saw(realistic_run):
     a, _ = _run(cleaned)
     b, _ = _run(dirty)
     assert a.params == b.params
+
+
+def test_an_x1_that_would_empty_a_chamber_leaves_the_state_finite():
+    """Not physical (wrong config or units), but it must not poison the filters for good."""
+    from monitor.layout import O_SVF_C
+
+    cfg = RigConfig(V20=0.001)  # chamber 2 empties at x1 = V20 / A2 = 0.25 m
+    run = simulate_fleet(cfg, [PlantParams()], [PaperIdentification()], 6.0, seeds=[0])[0]
+    s = run.samples.copy()
+    s[300:310, 1] = 0.5  # ten samples beyond chamber 2's end
+    fleet = Fleet()
+    fleet.add_rig("rig", cfg)
+    fleet.update(np.zeros(len(s), dtype=np.int64), s)
+    assert np.all(np.isfinite(fleet.states[0]))
+    assert np.all(np.isfinite(fleet.states[0, O_SVF_C:O_SVF_C + 60]))
+    assert np.isfinite(fleet.estimate(0).params["inv_beta_e"])
