@@ -20,7 +20,7 @@ import numpy as np
 
 from hydromon.contract import PARAM_NAMES, SAMPLE_LIMITS
 from monitor.grading import Ranges
-from monitor.identify import IdentOptions, gated
+from monitor.identify import IdentOptions
 from monitor.pipeline import Assessment, Pipeline
 from monitor.refine import REFINED, Refinement, refine
 from plant_sim.params import RigConfig
@@ -215,11 +215,11 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:
-    """The whole-record fit on what the streaming estimates saw (sensor glitches replaced),
+    """The whole-record fit (which sees what the streaming estimates saw: glitches replaced)
     over the longest stretch without a gap (the fit integrates the model from sample to sample)."""
     bounds = [0, *recording.restarts, len(recording.samples)]
     lo, hi = max(zip(bounds[:-1], bounds[1:]), key=lambda b: b[1] - b[0])
-    ref = refine(gated(recording.samples[lo:hi], options)[0], recording.config, assessment.params)
+    ref = refine(recording.samples[lo:hi], recording.config, assessment.params, options=options)
     if recording.restarts:
         ref = replace(ref, message=f"{ref.message} (samples {lo}..{hi - 1}, the longest stretch without a gap)")
     return ref
@@ -244,8 +244,8 @@ def to_json(ev: Evaluation) -> dict:
     }
     if ev.glitches is not None:  # added keys
         out["glitches_replaced"] = ev.glitches
-    r = ev.recording
-    out["gaps"] = {"count": len(r.restarts), "missing_samples": r.missing, "rejected_samples": r.rejected}
+    rec = ev.recording
+    out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected}
     if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
         r = ev.refined
         out["refined"] = {"ok": r.ok, "message": r.message,

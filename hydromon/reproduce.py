@@ -29,7 +29,6 @@ from hydromon.contract import PARAM_NAMES
 from monitor.calibrate import calibrate, simulate_runs
 from monitor.grading import Ranges
 from monitor.paper_recipe import identify_paper
-from monitor.identify import gated
 from monitor.pipeline import Pipeline
 from monitor.refine import REFINED, refine
 from plant_sim.degradation import TABLE4_PAPER_GRADES, table4_group
@@ -98,7 +97,7 @@ def _table2(noise: str, seeds: int, config: RigConfig, refined: bool = False):
         ours_runs.append(a.params)
         paper_runs.append(pr.params)
         if refined:
-            refined_runs.append(refine(gated(run.samples)[0], config, a.params))
+            refined_runs.append(refine(run.samples, config, a.params))
         if seed == 0:
             hist = History(t_ours=events.counts * config.h, ours=events.params.copy(),
                            t_paper=np.arange(1, len(run.samples) + 1) * config.h, paper=pr.history,

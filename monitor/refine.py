@@ -33,6 +33,7 @@ from numba import njit
 from scipy.optimize import least_squares
 
 from hydromon.contract import PARAM_NAMES
+from monitor.identify import IdentOptions, gated
 from plant_sim.model import derivatives
 from plant_sim.params import (
     P_B, P_BETA, P_CDW_RHO, P_CEP, P_CIP, P_FC, P_FV, P_KSV, P_KT, P_M, P_WSV, P_ZSV, PlantParams, RigConfig,
@@ -171,8 +172,13 @@ class Refinement:
 
 
 def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip: float = 0.5,
-           noise: np.ndarray | None = None, max_evaluations: int = 400) -> Refinement:
+           noise: np.ndarray | None = None, max_evaluations: int = 400,
+           options: IdentOptions | None = None) -> Refinement:
     """Fit all parameters to a record by prediction error.
+
+    The record is taken as the streaming identifier's outlier gate leaves it
+    (``monitor.identify.gated`` with ``options``), so the fit sees what the streaming
+    estimates saw and a sensor glitch cannot pull it.
 
     Parameters
     ----------
@@ -191,6 +197,7 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
     samples = np.ascontiguousarray(samples, dtype=np.float64)
     if samples.ndim != 2 or samples.shape[1] != 5 or not np.all(np.isfinite(samples)):
         raise ValueError(f"need finite samples (N, 5) = ug, x1, x3, x4, x5; got shape {samples.shape}")
+    samples = gated(samples, options)[0]
     h = config.h
     n0 = int(round(skip / h))
     if samples.shape[0] < n0 + 100:
