@@ -219,7 +219,11 @@ def _refine(recording: Recording, options: IdentOptions | None, assessment: Asse
     over the longest stretch without a gap (the fit integrates the model from sample to sample)."""
     bounds = [0, *recording.restarts, len(recording.samples)]
     lo, hi = max(zip(bounds[:-1], bounds[1:]), key=lambda b: b[1] - b[0])
-    ref = refine(recording.samples[lo:hi], recording.config, assessment.params, options=options)
+    try:
+        ref = refine(recording.samples[lo:hi], recording.config, assessment.params, options=options)
+    except ValueError as exc:  # too short a stretch: the streaming evaluation still stands
+        return Refinement(dict(assessment.params), dict.fromkeys(assessment.params, math.inf), False,
+                          f"not run: {exc}")
     if recording.restarts:
         ref = replace(ref, message=f"{ref.message} (samples {lo}..{hi - 1}, the longest stretch without a gap)")
     return ref

@@ -226,3 +226,14 @@ def test_a_restarted_rig_is_refused_with_a_hint(g4_run, tmp_path):
             w.write("hydro/rig/a/sample", json.dumps(payload).encode(), k * 10**7, k * 10**7)
     with pytest.raises(ValueError, match="back to 0 at sample 3.*replay --direct"):
         load_recording(p)
+
+
+def test_refine_on_too_short_a_stretch_keeps_the_evaluation(g4_run, tmp_path, capsys):
+    keep = np.r_[0:120, 125:240, 245:300]  # no stretch without a gap is long enough to refine
+    p = tmp_path / "short.csv"
+    p.write_text(csv_text(g4_run.t[keep], g4_run.samples[keep]))
+    assert main(["evaluate", str(p), "--json", "--refine"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["grade"] and doc["gaps"]["count"] == 2
+    assert doc["refined"]["ok"] is False and "not run" in doc["refined"]["message"]
+    assert all(v is None for v in doc["refined"]["std_errors"].values())
