@@ -23,25 +23,22 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from itertools import chain
 from operator import itemgetter
 
+import msgspec
 import numpy as np
 import orjson
 from pydantic import ValidationError
 
 from hydromon.contract import SAMPLE_LIMITS, SEQ_MAX, RigConfig, Sample
 
-__all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_sample", "parse_config", "sim_samples"]
+__all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_config", "parse_sample", "sim_samples"]
 
 REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-field", "wrong-type",
                   "unknown-field", "bad-value")
 _SAMPLE_FIELDS = ("seq", "t", "ug", "x1", "x3", "x4", "x5")
 _SAMPLE_FIELD_SET = frozenset(_SAMPLE_FIELDS)
 _NUM = (float, int)
-_GET = itemgetter(*_SAMPLE_FIELDS)
-_SIM_TYPES = (int, float, float, float, float, float, float)
-_SIM_TYPES_LIST = list(_SIM_TYPES)
 _SEQ = itemgetter(0)
 _L_UG, _L_X1, _L_X3, _L_X4, _L_X5 = (SAMPLE_LIMITS[k] for k in ("ug", "x1", "x3", "x4", "x5"))
 #: |value| limits of the columns (ug, x1, x3, x4, x5), for checking a whole batch at once
@@ -135,38 +132,50 @@ def parse_sample(obj) -> tuple[int, float, float, float, float, float, float]:
     return (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5)  # pragma: no cover (fast path takes these)
 
 
-def _sim_sample(payload: bytes):
-    try:
-        obj = orjson.loads(payload)
-        tup = _GET(obj)
-    except (orjson.JSONDecodeError, KeyError, TypeError):
-        return None
-    if len(obj) == 7 and tuple(map(type, tup)) == _SIM_TYPES and 0 <= tup[0] <= SEQ_MAX:
-        return tup
-    return None
+class _SimSample(msgspec.Struct, forbid_unknown_fields=True):
+    """The sample payload as our sim sends it: decoded and type-checked in C by msgspec."""
+
+    seq: int
+    t: float
+    ug: float
+    x1: float
+    x3: float
+    x4: float
+    x5: float
+
+
+_DECODE_SIM = msgspec.json.Decoder(_SimSample).decode
 
 
 def sim_samples(payloads: Sequence[bytes]) -> list:
     """``(seq, t, ug, x1, x3, x4, x5)`` of each payload that is exactly what our sim sends (an
-    object of the seven fields, an int seq in [0, SEQ_MAX], six floats), else None for that payload:
-    :func:`parse_sample` then gives its verdict (it also takes ints, or rejects with a reason).
+    object of the seven fields, an int seq in [0, SEQ_MAX], six finite numbers), else None for
+    that payload: :func:`parse_sample` then gives its verdict (or rejects with a reason).
 
-    Built for a whole batch at once: in the common case (every payload valid) the decode and
-    every check are a few C-level passes over the batch, not Python per message. Floats need
-    no finiteness check: orjson refuses NaN, Infinity and numbers that overflow a double. The
-    magnitude limits (``VALUE_LIMITS``) are left to the caller, on the array it builds anyway.
+    Built for a whole batch at once: in the common case (every payload valid) one typed
+    decode per payload (msgspec: JSON parsed straight into the seven typed fields, unknown
+    fields refused; measured 0.69 us a payload against 1.51 us for ``orjson.loads`` plus the
+    type checks in Python) and a range check of the seqs. msgspec refuses NaN, Infinity,
+    numbers that overflow a double, bools and strings; it takes an integer for a float field
+    as that float, as :func:`parse_sample` does. The magnitude limits (``VALUE_LIMITS``) are
+    left to the caller, on the array it builds anyway.
     """
     try:
-        objs = list(map(orjson.loads, payloads))
-        tups = list(map(_GET, objs))
-    except (orjson.JSONDecodeError, KeyError, TypeError):
+        tups = [(s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5) for s in map(_DECODE_SIM, payloads)]
+    except msgspec.DecodeError:
         return list(map(_sim_sample, payloads))
-    m = len(tups)
-    # every value's type in one pass, and no extra keys: all seven were found, so len 7 each
-    if list(map(type, chain.from_iterable(tups))) == _SIM_TYPES_LIST * m and sum(map(len, objs)) == 7 * m \
-            and min(map(_SEQ, tups), default=0) >= 0 and max(map(_SEQ, tups), default=0) <= SEQ_MAX:
+    if min(map(_SEQ, tups), default=0) >= 0 and max(map(_SEQ, tups), default=0) <= SEQ_MAX:
         return tups
     return list(map(_sim_sample, payloads))
+
+
+def _sim_sample(payload: bytes):
+    """:func:`sim_samples` of one payload."""
+    try:
+        s = _DECODE_SIM(payload)
+    except msgspec.DecodeError:
+        return None
+    return (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5) if 0 <= s.seq <= SEQ_MAX else None
 
 
 def parse_config(obj) -> RigConfig:

@@ -4,14 +4,15 @@ order), the latest health and the counters must be the same whatever the batchin
 
 from __future__ import annotations
 
+import numpy as np
 import orjson
+from helpers import BAD_SAMPLES
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hydromon.contract import SAMPLE_LIMITS, SEQ_MAX, RigConfig
-from hydromon.edge import sim_samples
+from hydromon.edge import VALUE_LIMITS, Rejected, decode_json, parse_sample, sim_samples
 from hydromon.monitorcore import MonitorCore
-from helpers import BAD_SAMPLES
 
 RIGS = ("ra", "rb", "rc")
 CONFIGS = [orjson.dumps(RigConfig().model_dump()), orjson.dumps(RigConfig(p_s=13e6).model_dump())]
@@ -108,13 +109,14 @@ def test_a_steady_stream_takes_the_batch_path():
 
 
 def _beyond_limits_only(payload: bytes) -> bool:
-    # the sim's shape, values beyond SAMPLE_LIMITS: sim_samples leaves those to its caller
+    # the sim's shape (numbers: floats or ints), values beyond SAMPLE_LIMITS: sim_samples leaves
+    # those to its caller
     try:
         d = orjson.loads(payload)
     except orjson.JSONDecodeError:
         return False
     return isinstance(d, dict) and len(d) == 7 and type(d.get("seq")) is int and 0 <= d["seq"] <= SEQ_MAX \
-        and all(type(d.get(k)) is float for k in SAMPLE_LIMITS) and type(d.get("t")) is float \
+        and all(type(d.get(k)) in (float, int) for k in SAMPLE_LIMITS) and type(d.get("t")) in (float, int) \
         and any(abs(d[k]) > lim for k, lim in SAMPLE_LIMITS.items())
 
 
@@ -123,10 +125,26 @@ def test_sim_samples_takes_exactly_the_sims_shape():
     assert sim_samples([good]) == [tuple(orjson.loads(good).values())]
     beyond = [p for _, p in BAD_SAMPLES if _beyond_limits_only(p)]
     assert len(beyond) >= 3 and None not in sim_samples(beyond)  # the limits are MonitorCore's check
-    others = [p for _, p in BAD_SAMPLES if not _beyond_limits_only(p)] + [_payload(3, ints=True),
-                                            good.replace(b'"seq":3', b'"seq":%d' % (SEQ_MAX + 1))]
+    others = [p for _, p in BAD_SAMPLES if not _beyond_limits_only(p)] + [
+        good.replace(b'"seq":3', b'"seq":%d' % (SEQ_MAX + 1)), good.replace(b'"seq":3', b'"seq":' + b"9" * 30),
+        good.replace(b'"seq":3', b'"seq":3.0'), good.replace(b'"t":0.03', b'"t":' + b"9" * 400),
+        good.replace(b'"t":0.03', b'"t":true'), good + b" x", good.replace(b"}", b',"extra":1}')]
     assert sim_samples(others) == [None] * len(others)
     assert sim_samples([good] + others)[1:] == [None] * len(others)  # one bad one spoils none
+
+
+def test_what_sim_samples_takes_the_per_message_path_takes_with_the_same_values():
+    # integers for floats (valid JSON numbers) are taken on both paths, as floats
+    for p in [_payload(3), _payload(250, ints=True)] + [p for _, p in BAD_SAMPLES]:
+        fast = sim_samples([p])[0]
+        if fast is None:
+            continue
+        try:
+            slow = parse_sample(decode_json(p))
+        except Rejected as exc:  # only what MonitorCore checks on the batch's array
+            assert exc.reason == "bad-value" and (np.abs(fast[2:]) > VALUE_LIMITS).any(), p
+            continue
+        assert fast == slow and list(map(type, fast)) == list(map(type, slow)), p
 
 
 def test_a_config_change_inside_a_batch_applies_from_its_place():
