@@ -21,7 +21,7 @@ import numpy as np
 from hydromon.contract import PARAM_NAMES, SAMPLE_LIMITS
 from monitor.grading import Ranges
 from monitor.identify import IdentOptions
-from monitor.pipeline import Assessment, Pipeline
+from monitor.pipeline import Assessment, Events, Pipeline
 from monitor.refine import REFINED, Refinement, refine
 from plant_sim.params import RigConfig
 
@@ -61,6 +61,8 @@ class Evaluation:
     assessment: Assessment
     refined: Refinement | None = None  # the whole-record prediction-error fit, when asked for
     glitches: dict[str, int] | None = None  # sensor samples the outlier gate replaced, per sensor
+    history: Events | None = None  # every evaluation of the run (sample index into the recording)
+    ranges: Ranges | None = None  # the health ranges graded against
 
     @property
     def status(self) -> str:
@@ -209,9 +211,9 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     With ``refined``, also fit the whole model to the record by prediction error
     (``monitor.refine``), started from the pipeline's estimates."""
     pipe = Pipeline(config=recording.config, options=options, ranges=ranges)
-    _events, assessment = pipe.run(recording.samples, recording.restarts)
+    events, assessment = pipe.run(recording.samples, recording.restarts)
     ref = _refine(recording, options, assessment) if refined else None
-    return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0))
+    return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events, pipe.fleet.ranges)
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

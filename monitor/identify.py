@@ -347,18 +347,25 @@ def _gate_record(st, hyper, samples, out):
     return k
 
 
-def gated(samples: np.ndarray, options: IdentOptions | None = None) -> tuple[np.ndarray, np.ndarray]:
+def gated(samples: np.ndarray, options: IdentOptions | None = None,
+          restarts=()) -> tuple[np.ndarray, np.ndarray]:
     """A record (N, 5) as the identifier sees it after its outlier gate, and the glitches
     replaced per sensor (x1, x3, x4, x5). The last sample, which the gate still holds in a
-    stream, comes back as it is. For whole-record methods (``monitor.refine``) that should
-    see what the streaming estimates saw."""
+    stream, comes back as it is. For whole-record methods (``monitor.refine``) and plots that
+    should see what the streaming estimates saw. ``restarts``: indices of samples that follow
+    a gap, where the stream restarts its filters (``reset_signals``; the sample the gate
+    held before the gap comes back as it is)."""
     samples = np.ascontiguousarray(samples, dtype=np.float64)
     if samples.ndim != 2 or samples.shape[1] != N_CH:
         raise ValueError(f"samples must be (N, {N_CH}) = (ug, x1, x3, x4, x5), got {samples.shape}")
     hyper = Kernels(options or IdentOptions(), 0.01).hyper  # the gate needs no sample period
     st = new_state(hyper)
     out = samples.copy()
-    _gate_record(st, hyper, samples, out)
+    bounds = [0, *sorted({int(i) for i in restarts if 0 < i < len(samples)}), len(samples)]
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        if lo:
+            reset_signals(st)
+        _gate_record(st, hyper, samples[lo:hi], out[lo:hi])
     return out, st[O_OUTLIERS:O_OUTLIERS + 4].copy()
 
 

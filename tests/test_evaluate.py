@@ -237,3 +237,28 @@ def test_refine_on_too_short_a_stretch_keeps_the_evaluation(g4_run, tmp_path, ca
     assert doc["grade"] and doc["gaps"]["count"] == 2
     assert doc["refined"]["ok"] is False and "not run" in doc["refined"]["message"]
     assert all(v is None for v in doc["refined"]["std_errors"].values())
+
+
+def test_plots_show_the_run_the_evaluation_saw(g4_run, tmp_path, capsys):
+    from hydromon.evaluate_plots import plot_evaluation
+
+    keep = np.r_[0:300, 320:len(g4_run.t)]  # a gap
+    samples = g4_run.samples[keep].copy()
+    samples[500, 2] += 2e7  # an x3 glitch after the gap
+    samples[100, 1] += 0.02  # an x1 glitch before it
+    p = tmp_path / "gappy.csv"
+    p.write_text(csv_text(g4_run.t[keep], samples))
+    ev = evaluate(load_recording(p))
+    assert ev.glitches == {"x1": 1, "x3": 1, "x4": 0, "x5": 0}
+    summary = plot_evaluation(ev, tmp_path / "plots")
+    # the markers are where the stream's gate replaced values, gap and all
+    assert summary.glitch_markers == ev.glitches and summary.gaps == 1
+    assert summary.evaluations == len(ev.history) >= (len(samples) - 2) // 10 - 1  # one per 10 samples
+    assert [f.name for f in summary.files] == ["gappy-csv-grade.png", "gappy-csv-params.png", "gappy-csv-signals.png"]
+    for f in summary.files:
+        assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f.stat().st_size > 10_000
+    # the CLI writes the same three and says where
+    assert main(["evaluate", str(p), "--plots", str(tmp_path / "cli")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("wrote") == 3 and sorted(x.name for x in (tmp_path / "cli").iterdir()) == \
+        sorted(f.name for f in summary.files)

@@ -19,6 +19,10 @@ def add_arguments(parser) -> None:
                         help="also fit the force and chamber parameters to the whole record by prediction error "
                              "(monitor/refine.py: B + f_v at realistic sensor noise ~0.8 %% instead of ~4 %%; "
                              "about 0.1 s of CPU per second of data)")
+    parser.add_argument("--plots", metavar="DIR",
+                        help="also write PNGs into DIR: the grade over time with each graded parameter's "
+                             "grade, the estimates with +-3 standard errors and the health-band edges, the "
+                             "signals with the replaced glitches and the gaps")
 
 
 def run(args) -> int:
@@ -32,6 +36,11 @@ def run(args) -> int:
         print(f"hydromon evaluate: refining over {len(rec.samples) / rec.config.sample_rate:g} s of data "
               f"(about {0.1 * len(rec.samples) / rec.config.sample_rate:.0f} s)", file=sys.stderr)
     result = evaluate(rec, ranges=ranges, refined=args.refine)
+    if args.plots:
+        from hydromon.evaluate_plots import plot_evaluation
+
+        for path in plot_evaluation(result, args.plots).files:
+            print(f"hydromon evaluate: wrote {path}", file=sys.stderr)
     if args.json:
         print(json.dumps(to_json(result)))
     else:
