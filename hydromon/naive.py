@@ -84,7 +84,7 @@ class NaiveIdentifier:
         self.res_e2 = np.zeros(N_STREAMS)
         self.res_hist = np.zeros((N_STREAMS, N_LAGS))
         self.res_cov = np.zeros((N_STREAMS, N_LAGS))
-        self.held = None  # the outlier gate's newest arrival, waiting for its right neighbour
+        self.held: list = []  # the outlier gate's two newest arrivals (older first), waiting for neighbours
         self.gate_s = np.zeros(4)
         self.gate_n = 0.0
         self.outliers = np.zeros(4)
@@ -179,33 +179,44 @@ class NaiveIdentifier:
     # -- the streaming contract -------------------------------------------------------------
 
     def update(self, sample) -> None:
-        """Take one sample (ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m]); the one before it is consumed."""
+        """Take one sample (ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m]); the one two before it is consumed."""
         sample = np.asarray(sample, dtype=np.float64)
         if sample.shape != (N_CH,):
             raise ValueError(f"sample must be (ug, x1, x3, x4, x5), got shape {sample.shape}")
-        held, self.held = self.held, sample.copy()
-        if held is None:
+        self.held.append(sample.copy())
+        if len(self.held) < 3:
             return
+        g1 = self.held.pop(0)
         if self.n >= 1 and self.options.outlier_gate > 0:
-            held = self._gate(held, sample)
-        self._consume(held)
+            g1 = self._gate(g1, self.held[0], self.held[1])
+        self._consume(g1)
 
-    def _gate(self, mid: np.ndarray, right: np.ndarray) -> np.ndarray:
-        """A sensor value that jumps away from both neighbours by far more than usual: their mean."""
+    def _gate(self, mid: np.ndarray, right: np.ndarray, far: np.ndarray) -> np.ndarray:
+        """A sensor value that jumps away from both neighbours by far more than usual: their mean;
+        two that sit together away from both sides: the line between the sides (``right``, the
+        next sample, is replaced in place)."""
         self.gate_n += 1.0
         w = 1.0 / min(self.gate_n, self.options.noise_window)
         out = mid.copy()
+        g2 = self.options.outlier_gate ** 2
         for c in range(4):
             ch = c + 1
             left = self._at(0, ch)
             a, b = mid[ch] - left, mid[ch] - right[ch]
             v = (a + b) ** 2
             if self.gate_n > 50:
-                glitch = v > self.options.outlier_gate ** 2 * self.gate_s[c] and a * b > 0 \
-                    and min(abs(a), abs(b)) > 0.25 * abs(a + b)
-                if glitch:
+                if v > g2 * self.gate_s[c] and a * b > 0 and min(abs(a), abs(b)) > 0.25 * abs(a + b):
                     out[ch] = 0.5 * (left + right[ch])
                     self.outliers[c] += 1.0
+                    continue
+                dev = 0.5 * (mid[ch] + right[ch]) - 0.5 * (left + far[ch])
+                pa, pb = mid[ch] - left, right[ch] - far[ch]
+                if 4.0 * dev * dev > g2 * self.gate_s[c] and pa * dev > 0 and pb * dev > 0 \
+                        and min(abs(pa), abs(pb)) > 0.5 * abs(dev) and abs(mid[ch] - right[ch]) < 0.5 * abs(dev) \
+                        and abs(far[ch] - left) < abs(dev):
+                    out[ch] = left + (far[ch] - left) / 3.0
+                    right[ch] = left + 2.0 * (far[ch] - left) / 3.0
+                    self.outliers[c] += 2.0
                     continue
                 v = min(v, 100.0 * self.gate_s[c])
             self.gate_s[c] += w * (v - self.gate_s[c])
@@ -311,8 +322,9 @@ class NaiveIdentifier:
         st[O_RES_E2:O_RES_E2 + N_STREAMS] = self.res_e2
         st[O_RES_HIST:O_RES_HIST + N_STREAMS * N_LAGS] = self.res_hist.ravel()
         st[O_RES_COV:O_RES_COV + N_STREAMS * N_LAGS] = self.res_cov.ravel()
-        if self.held is not None:
-            st[O_GATE:O_GATE + N_CH], st[O_GATE_HAS] = self.held, 1.0
+        for i, held in enumerate(self.held):
+            st[O_GATE + i * N_CH:O_GATE + (i + 1) * N_CH] = held
+        st[O_GATE_HAS] = len(self.held)
         st[O_GATE_S:O_GATE_S + 4], st[O_GATE_N] = self.gate_s, self.gate_n
         st[O_OUTLIERS:O_OUTLIERS + 4] = self.outliers
         return st

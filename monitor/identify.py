@@ -190,7 +190,8 @@ def reset_estimates(st: np.ndarray, hyper: np.ndarray) -> None:
 def reset_signals(st: np.ndarray) -> None:
     """Restart the signal path (after a gap): filters re-initialise, estimates are kept.
 
-    The sample the outlier gate holds is dropped: its right neighbour is on the far side of the gap.
+    The samples the outlier gate holds are dropped: their right neighbours are on the far side
+    of the gap.
     """
     st[O_N] = 0.0
     st[O_GATE_HAS] = 0.0
@@ -293,20 +294,35 @@ GATE_SETTLE = 50  # samples of the gate's scale estimate before it judges any sa
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _gate(st, hyper, ug, x1, x3, x4, x5, out):
-    """Outlier gate with one sample of lookahead: hold the arrival, release the one before.
+    """Outlier gate with two samples of lookahead: hold the two newest arrivals, release the
+    one before them.
 
-    ``out`` gets the released sample (ug, x1, x3, x4, x5), a glitched sensor value replaced
-    by its neighbours' mean. Returns False when nothing is released (the first arrival after
-    a start or a gap). A glitch jumps away from both neighbours; a step, a kink or a reversal
-    does not, so they pass.
+    ``out`` gets the released sample (ug, x1, x3, x4, x5) with a glitched sensor value
+    replaced. Returns False when nothing is released (the first two arrivals after a start
+    or a gap). Per sensor, with L the last released value, g1 the sample being released,
+    g2 the next one and r the arrival:
+
+    * a lone glitch: g1 jumps away from both L and g2 (centred second difference above the
+      threshold, both jumps of the same sign and large) -> the mean of L and g2;
+    * a pair: g1 and g2 sit together away from both L and r (each end jumps the same way;
+      the pair's own difference under half its departure, and L and r closer together than
+      the departure, so a bend of the signal is not a pair: measured, the spool's lagging
+      response to a command step was) -> both on the line from L to r (g2 is replaced where
+      it is held, and released as that at the next arrival).
+
+    A step, a kink or a reversal does not jump away from both sides, so they pass.
     """
-    has = st[O_GATE_HAS] > 0.0
-    for ch in range(N_CH):
-        out[ch] = st[O_GATE + ch]
-    st[O_GATE], st[O_GATE + 1], st[O_GATE + 2], st[O_GATE + 3], st[O_GATE + 4] = ug, x1, x3, x4, x5
-    st[O_GATE_HAS] = 1.0
-    if not has:
+    has = st[O_GATE_HAS]
+    if has < 2.0:
+        o = O_GATE + N_CH if has > 0.0 else O_GATE
+        st[o], st[o + 1], st[o + 2], st[o + 3], st[o + 4] = ug, x1, x3, x4, x5
+        st[O_GATE_HAS] = has + 1.0
         return False
+    for ch in range(N_CH):  # release g1; g2 moves to the first slot, the arrival to the second
+        out[ch] = st[O_GATE + ch]
+        st[O_GATE + ch] = st[O_GATE + N_CH + ch]
+    o = O_GATE + N_CH
+    st[o], st[o + 1], st[o + 2], st[o + 3], st[o + 4] = ug, x1, x3, x4, x5
     if st[O_N] < 1.0 or hyper[H_GATE2] <= 0.0:
         return True  # no left neighbour yet, or the gate is off
     cnt = st[O_GATE_N] + 1.0
@@ -327,6 +343,17 @@ def _gate(st, hyper, ug, x1, x3, x4, x5, out):
                 out[ch] = 0.5 * (left + right)
                 st[O_OUTLIERS + c] += 1.0
                 continue  # a glitch does not count toward the scale
+            far = st[O_GATE + N_CH + ch]
+            dev = 0.5 * (mid + right) - 0.5 * (left + far)  # the pair's departure from its ends
+            pa = mid - left
+            pb = right - far
+            if 4.0 * dev * dev > hyper[H_GATE2] * cur and pa * dev > 0.0 and pb * dev > 0.0 \
+                    and min(abs(pa), abs(pb)) > 0.5 * abs(dev) and abs(mid - right) < 0.5 * abs(dev) \
+                    and abs(far - left) < abs(dev):
+                out[ch] = left + (far - left) / 3.0
+                st[O_GATE + ch] = left + 2.0 * (far - left) / 3.0
+                st[O_OUTLIERS + c] += 2.0
+                continue
             if v > 100.0 * cur:
                 v = 100.0 * cur
         st[O_GATE_S + c] = cur + w * (v - cur)
@@ -350,11 +377,11 @@ def _gate_record(st, hyper, samples, out):
 def gated(samples: np.ndarray, options: IdentOptions | None = None,
           restarts=()) -> tuple[np.ndarray, np.ndarray]:
     """A record (N, 5) as the identifier sees it after its outlier gate, and the glitches
-    replaced per sensor (x1, x3, x4, x5). The last sample, which the gate still holds in a
-    stream, comes back as it is. For whole-record methods (``monitor.refine``) and plots that
+    replaced per sensor (x1, x3, x4, x5). The last two samples, which the gate still holds in
+    a stream, come back as they are. For whole-record methods (``monitor.refine``) and plots that
     should see what the streaming estimates saw. ``restarts``: indices of samples that follow
-    a gap, where the stream restarts its filters (``reset_signals``; the sample the gate
-    held before the gap comes back as it is)."""
+    a gap, where the stream restarts its filters (``reset_signals``; the samples the gate
+    held before the gap come back as they are)."""
     samples = np.ascontiguousarray(samples, dtype=np.float64)
     if samples.ndim != 2 or samples.shape[1] != N_CH:
         raise ValueError(f"samples must be (N, {N_CH}) = (ug, x1, x3, x4, x5), got {samples.shape}")
@@ -374,7 +401,7 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
                   ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
     """Take one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place.
 
-    The outlier gate holds it for one sample; the sample before it is consumed now.
+    The outlier gate holds it for two samples; the sample two before it is consumed now.
     ``work`` is scratch space of WORK_SIZE floats (so the per-sample path allocates nothing).
     """
     s = work[74:79]

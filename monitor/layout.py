@@ -32,8 +32,8 @@ _FIELDS = [
     ("BC", 3),  # force weight sum, chamber sum of V1^2, sum of V2^2 (forgetting-weighted)
     ("RES_W", N_STREAMS), ("RES_E2", N_STREAMS),
     ("RES_HIST", N_STREAMS * N_LAGS), ("RES_COV", N_STREAMS * N_LAGS),
-    ("GATE", N_CH),  # the newest arrival, held one sample for the outlier gate's lookahead
-    ("GATE_HAS", 1),  # 1 while GATE holds a sample
+    ("GATE", 2 * N_CH),  # the two newest arrivals (older first), held for the outlier gate's lookahead
+    ("GATE_HAS", 1),  # how many samples GATE holds (0, 1, 2)
     ("GATE_S", 4),  # running mean of squared centred 2nd differences of x1, x3, x4, x5
     ("GATE_N", 1),
     ("OUTLIERS", 4),  # samples the gate replaced, per sensor x1, x3, x4, x5

@@ -52,6 +52,35 @@ def test_glitches_are_replaced_and_leave_the_estimates(realistic_run):
         assert abs(dirty.params[name] - value) <= 0.05 * clean.std_errors[name], name
 
 
+# two consecutive samples off (a burst), per sensor: (first index, column, offsets)
+PAIRS = ((800, 1, (0.04, 0.05)), (1100, 2, (3e7, 2.5e7)), (1400, 3, (-2e7, -2e7)), (1700, 4, (8e-4, 1e-3)))
+
+
+def _paired(samples):
+    out = samples.copy()
+    for k, col, offs in PAIRS:
+        out[k:k + 2, col] += offs
+    return out
+
+
+def test_glitch_pairs_are_replaced_and_leave_the_estimates(realistic_run):
+    clean, _ = _run(realistic_run.samples)
+    dirty, counts = _run(_paired(realistic_run.samples))
+    assert counts.tolist() == [2, 2, 2, 2]  # both samples of each burst, nothing else
+    assert dirty.grade == clean.grade
+    for name, value in clean.params.items():
+        assert abs(dirty.params[name] - value) <= 0.05 * clean.std_errors[name], name
+    # and what the gate put in their place: the line between the burst's neighbours
+    from monitor.identify import gated
+
+    dirty_record = _paired(realistic_run.samples)
+    cleaned, _ = gated(dirty_record)
+    for k, col, _ in PAIRS:
+        left, right = dirty_record[k - 1, col], dirty_record[k + 2, col]
+        np.testing.assert_allclose(cleaned[k:k + 2, col], [left + (right - left) / 3, left + 2 * (right - left) / 3],
+                                   rtol=1e-12)
+
+
 def test_without_the_gate_one_glitch_wrecks_the_chamber_parameters(realistic_run):
     """The failure the gate exists for (measured: 66-98 % off from one 30 MPa sample)."""
     truth = realistic_run.params.identified()
@@ -108,6 +137,30 @@ def test_a_lone_jump_is_replaced_a_step_is_not(col, k, size, sign, freqs):
     assert counts[col - 1] == 1 and counts.sum() == 1
     step = base.copy()
     step[k:, col] += sign * size * unit
+    _, counts = _run(step)
+    assert counts.sum() == 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(col=st.sampled_from([1, 2, 3, 4]), k=st.integers(80, 380), size=st.floats(20.0, 1e4),
+       ratio=st.floats(0.75, 1.0), sign=st.sampled_from([-1.0, 1.0]),
+       freqs=st.lists(st.floats(0.2, 8.0), min_size=2, max_size=3))
+def test_a_pair_of_jumps_is_replaced_a_two_sample_plateau_step_is_not(col, k, size, ratio, sign, freqs):
+    n = 400
+    base = _synthetic(n)
+    mag = np.abs(base[0, col])
+    sig = _smooth(n, [0.01 * mag] * len(freqs), freqs)
+    base[:, col] += sig
+    unit = max(np.sqrt(np.mean(np.diff(sig, 2) ** 2)), np.abs(np.diff(sig)).max(), 1e-9 * mag)
+    burst = base.copy()
+    burst[k, col] += sign * size * unit
+    burst[k + 1, col] += sign * ratio * size * unit
+    _, counts = _run(burst)
+    assert counts[col - 1] == 2 and counts.sum() == 2
+    # a step that lands in two stages (half, then all of it) is signal
+    step = base.copy()
+    step[k, col] += 0.5 * sign * size * unit
+    step[k + 1:, col] += sign * size * unit
     _, counts = _run(step)
     assert counts.sum() == 0
 

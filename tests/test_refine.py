@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from hydromon.evaluate import Recording, evaluate, to_json
+from monitor.identify import IdentOptions
 from monitor.pipeline import Fleet
 from monitor.refine import REFINED, refine, sensor_noise
 from plant_sim.noise import noise_model
@@ -91,5 +92,13 @@ def test_evaluate_adds_the_refinement_to_its_json():
     glitched[600, 2] += 3e7
     doc_g = to_json(evaluate(Recording("rig-1", rec.t, glitched, RigConfig(), "<test>"), refined=True))
     assert doc_g["glitches_replaced"]["x3"] == 1
+    # within one standard error: the fit's optimum itself moves by up to 0.6 SE with its start
+    # (measured: the same record from the streaming estimates and from them +-0.3 %; tighter
+    # least-squares tolerances do not change that); the glitch fitted raw moves it by far more
+    se = doc["refined"]["std_errors"]
     for k, v in doc["refined"]["params"].items():
-        assert abs(doc_g["refined"]["params"][k] - v) <= 0.1 * doc["refined"]["std_errors"][k], k
+        assert abs(doc_g["refined"]["params"][k] - v) <= se[k], k
+    raw = to_json(evaluate(Recording("rig-1", rec.t, glitched, RigConfig(), "<test>"),
+                           options=IdentOptions(outlier_gate=0.0), refined=True))
+    assert max(abs(raw["refined"]["params"][k] - doc["refined"]["params"][k]) / se[k]
+               for k in ("inv_beta_e", "CdW_sqrt_rho", "C_ip")) > 5
