@@ -1,7 +1,7 @@
 """Record-level refinement: a whole-model prediction-error fit of a finished record (batch).
 
 The streaming identifier fits each equation on its own, so the force balance sees the
-chamber pressures only through their sensors: at realistic noise (5 kPa) B + f_v is 4.3 %
+chamber pressures only through their sensors: at realistic noise (5 kPa) B + f_v is 4.4 %
 off on the paper's 10 s input, while the record holds enough to know it to 0.56 % (the
 Cramer-Rao bound of the whole model, ``benchmarks/crlb.py``, without the start from rest).
 The information is in the chamber equations: the spool position (0.5 um noise) and the
@@ -15,7 +15,7 @@ previous ones; the parameters minimise the whitened innovations of all four sens
 Standard errors come from the Gauss-Newton covariance scaled by the innovations' variance.
 
 Measured (paper's identification input, 10 s, realistic noise; research scripts in
-``benchmarks/research/bfv``): B + f_v 0.79 % mean error over seeds 0-9 (streaming 4.31 %),
+``benchmarks/research/bfv``): B + f_v 0.79 % mean error over seeds 0-9 (streaming 4.3 %),
 0.48 % over seeds 10-39; stress noise 7.1 % (streaming 11.7 %); noise-free 0.01 %.
 The valve parameters are better from the streaming identifier (its exact discrete valve
 model with instrumental variables): use the refinement for the force and chamber rows.
