@@ -63,6 +63,7 @@ class Evaluation:
     glitches: dict[str, int] | None = None  # sensor samples the outlier gate replaced, per sensor
     history: Events | None = None  # every evaluation of the run (sample index into the recording)
     ranges: Ranges | None = None  # the health ranges graded against
+    x1_clamped: int = 0  # samples whose x1 would have emptied a chamber (config or x1 wrong)
 
     @property
     def status(self) -> str:
@@ -213,7 +214,8 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     pipe = Pipeline(config=recording.config, options=options, ranges=ranges)
     events, assessment = pipe.run(recording.samples, recording.restarts)
     ref = _refine(recording, options, assessment) if refined else None
-    return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events, pipe.fleet.ranges)
+    return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events, pipe.fleet.ranges,
+                      pipe.fleet.x1_clamped(0))
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:
@@ -250,6 +252,7 @@ def to_json(ev: Evaluation) -> dict:
     }
     if ev.glitches is not None:  # added keys
         out["glitches_replaced"] = ev.glitches
+    out["x1_outside_chambers"] = ev.x1_clamped
     rec = ev.recording
     out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected}
     if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
@@ -291,6 +294,11 @@ def render(ev: Evaluation, console=None) -> None:
     if r.restarts or r.rejected:
         console.print(f"[yellow]{len(r.restarts)} gap(s), {r.missing} sample(s) missing, {r.rejected} invalid "
                       "sample(s) skipped: the filters restarted after each gap, the estimates carried on[/yellow]")
+    if ev.x1_clamped:
+        c = r.config
+        console.print(f"[red]{ev.x1_clamped} sample(s) put x1 beyond a chamber's end (x1 < {-c.V10 / c.A1:.4g} m or "
+                      f"> {c.V20 / c.A2:.4g} m empties one: V_i0 / A_i of the rig constants): the rig constants or "
+                      "x1's zero, sign or unit are wrong, and the chamber parameters are not to be trusted[/red]")
     if ev.glitches and any(ev.glitches.values()):
         what = ", ".join(f"{n} {k}" for k, n in ev.glitches.items() if n)
         console.print(f"[yellow]sensor glitches replaced by their neighbours' mean: {what}[/yellow]")

@@ -22,7 +22,7 @@ import numpy as np
 
 from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F, IdentOptions, Kernels
 from monitor.layout import (
-    N_CH, N_LAGS, N_STREAMS, O_BC, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
+    N_CH, N_LAGS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
     O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_SLOW, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RING,
     SG_HALF, STATE_SIZE, SVF_STATE,
 )
@@ -88,6 +88,7 @@ class NaiveIdentifier:
         self.gate_s = np.zeros(4)
         self.gate_n = 0.0
         self.outliers = np.zeros(4)
+        self.clamped = 0.0
 
     # -- pieces -----------------------------------------------------------------------------
 
@@ -238,8 +239,10 @@ class NaiveIdentifier:
         c, o = self.config, self.options
         x1, x3, x4, x5 = (self._at(0, ch) for ch in (1, 2, 3, 4))
         # each chamber equation divided by its volume: A1 x2 / V1 = d/dt ln V1, so no velocity
-        r1 = max(c.A1 * x1 / c.V10, V_MIN - 1.0)  # a chamber never below V_MIN of its volume
-        r2 = max(-c.A2 * x1 / c.V20, V_MIN - 1.0)
+        r1, r2 = c.A1 * x1 / c.V10, -c.A2 * x1 / c.V20
+        if min(r1, r2) < V_MIN - 1.0:  # a chamber never below V_MIN of its volume
+            self.clamped += 1.0
+            r1, r2 = max(r1, V_MIN - 1.0), max(r2, V_MIN - 1.0)
         w1, w2 = 1.0 / (1.0 + r1), 1.0 / (1.0 + r2)
         z1, z2 = _orifice_z(x5, x3, x4, c.p_s)
         u_c = np.array([x3, x4, math.log1p(r1), math.log1p(r2),
@@ -327,6 +330,7 @@ class NaiveIdentifier:
         st[O_GATE_HAS] = len(self.held)
         st[O_GATE_S:O_GATE_S + 4], st[O_GATE_N] = self.gate_s, self.gate_n
         st[O_OUTLIERS:O_OUTLIERS + 4] = self.outliers
+        st[O_CLAMPED] = self.clamped
         return st
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:

@@ -54,7 +54,7 @@ from plant_sim.params import RigConfig
 from .layout import (
     C_A1, C_A2, C_FL, C_KF, C_KP, C_PS, C_V10, C_V20, H_BC, H_H, H_IV, H_IV_START, H_LAM,
     H_NOISE_N, H_P0, H_VSTICK, H_GUARD, H_PMAX, H_STEP_TOL, H_WARM, H_GATE2, HYPER_SIZE, N_CH, N_LAGS, O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_HIST,
-    O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_OUTLIERS, O_RES_W, O_RING, O_SLOW, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
+    O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_OUTLIERS, O_RES_W, O_RING, O_SLOW, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
     N_CH_SVF, RING, SG_HALF, STATE_SIZE,
 )
 from .rls import riv_update, rls_update
@@ -441,8 +441,12 @@ def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
     a1, a2 = rc[C_A1], rc[C_A2]
     # V_i / V_i0 - 1; an x1 that would empty a chamber is not physical (wrong config or units):
     # clamped so the filters stay finite (a NaN would stay in them until the next gap)
-    r1 = max(a1 * x1 / rc[C_V10], V_MIN - 1.0)
-    r2 = max(-a2 * x1 / rc[C_V20], V_MIN - 1.0)
+    r1 = a1 * x1 / rc[C_V10]
+    r2 = -a2 * x1 / rc[C_V20]
+    if r1 < V_MIN - 1.0 or r2 < V_MIN - 1.0:  # counted: evaluate and the monitor report it
+        st[O_CLAMPED] += 1.0
+        r1 = max(r1, V_MIN - 1.0)
+        r2 = max(r2, V_MIN - 1.0)
     w1 = 1.0 / (1.0 + r1)
     w2 = 1.0 / (1.0 + r2)
     z1, z2 = orifice_z(x5, x3, x4, rc[C_PS])

@@ -37,6 +37,7 @@ _FIELDS = [
     ("GATE_S", 4),  # running mean of squared centred 2nd differences of x1, x3, x4, x5
     ("GATE_N", 1),
     ("OUTLIERS", 4),  # samples the gate replaced, per sensor x1, x3, x4, x5
+    ("CLAMPED", 1),  # samples whose x1 would have emptied a chamber (volume clamped, see identify)
 ]
 
 OFFSETS: dict[str, tuple[int, int]] = {}
@@ -71,6 +72,7 @@ O_GATE_HAS = OFFSETS["GATE_HAS"][0]
 O_GATE_S = OFFSETS["GATE_S"][0]
 O_GATE_N = OFFSETS["GATE_N"][0]
 O_OUTLIERS = OFFSETS["OUTLIERS"][0]
+O_CLAMPED = OFFSETS["CLAMPED"][0]
 
 # Per-rig constants row (SI): the rig config the equations need.
 (C_A1, C_A2, C_V10, C_V20, C_PS, C_FL, C_KP, C_KF) = range(8)

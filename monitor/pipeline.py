@@ -22,7 +22,7 @@ from plant_sim.params import RigConfig
 from .estimates import estimates
 from .grading import Ranges, grade_kernel
 from .identify import WORK_SIZE, IdentOptions, Kernels, identify_step, new_state, reset_signals, rig_constants
-from .layout import O_OUTLIERS, O_ROWS, STATE_SIZE
+from .layout import O_CLAMPED, O_OUTLIERS, O_ROWS, STATE_SIZE
 
 N_P = len(PARAM_NAMES)
 
@@ -384,6 +384,12 @@ class Fleet:
         """Sensor samples of one rig the outlier gate replaced so far, per sensor."""
         counts = self.states[rig, O_OUTLIERS:O_OUTLIERS + 4]
         return {name: int(c) for name, c in zip(("x1", "x3", "x4", "x5"), counts)}
+
+    def x1_clamped(self, rig: int) -> int:
+        """Samples of one rig whose x1 would have emptied a chamber (V_i under 1 % of V_i0): not
+        physical, so the rig constants (A1, A2, V10, V20) or x1's zero, sign or unit are wrong;
+        the chamber rows took the clamped volume and their parameters are not to be trusted."""
+        return int(self.states[rig, O_CLAMPED])
 
     def estimate(self, rig: int) -> Assessment:
         """Evaluate one rig now (does not move its hysteresis state)."""

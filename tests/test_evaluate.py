@@ -11,7 +11,8 @@ from plant_sim.degradation import TABLE4_PAPER_GRADES, table4_group
 from plant_sim.profiles import PaperVariable
 from plant_sim.simulate import simulate
 
-KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps"}
+KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps",
+        "x1_outside_chambers"}
 
 
 @pytest.fixture(scope="module")
@@ -262,3 +263,22 @@ def test_plots_show_the_run_the_evaluation_saw(g4_run, tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("wrote") == 3 and sorted(x.name for x in (tmp_path / "cli").iterdir()) == \
         sorted(f.name for f in summary.files)
+
+
+def test_an_x1_beyond_a_chamber_is_reported(g4_run, capsys):
+    """Not physical: the rig constants or x1's zero/sign/unit are wrong; say so, do not hide it."""
+    from hydromon.evaluate import Recording, render, to_json
+    from plant_sim.params import RigConfig
+
+    cfg = RigConfig(V10=0.0004)  # chamber 1 empties at x1 = -V10 / A1 = -0.05 m
+    s = g4_run.samples.copy()
+    assert to_json(evaluate(Recording("r", g4_run.t, s, cfg, "<test>")))["x1_outside_chambers"] == 0
+    s[:, 1] -= 0.08  # x1 from the other end: every sample below -0.05 m until x1 > 0.03 m
+    from monitor.identify import V_MIN
+
+    # clamped below 1 % of V10 (V_MIN); the gate holds the last two samples
+    expected = int(np.sum(g4_run.samples[:-2, 1] - 0.08 < -(1 - V_MIN) * 0.05))
+    ev = evaluate(Recording("r", g4_run.t, s, cfg, "<test>"))
+    assert expected > 100 and to_json(ev)["x1_outside_chambers"] == ev.x1_clamped == expected
+    render(ev)
+    assert "beyond a chamber's end" in capsys.readouterr().out

@@ -394,3 +394,18 @@ def test_monitor_command_runs_for_its_duration_and_reports_its_counts():
         proc.kill()
     assert proc.returncode == 0, err
     assert "2 rig(s), 600 samples, 60 health messages; rejected: not-json 1;" in err
+
+
+def test_the_exit_summary_names_rigs_whose_x1_empties_a_chamber():
+    from hydromon.commands.monitor import x1_clamped_line
+
+    core = MonitorCore(NS)
+    # rig "bad": chamber 1 empties at x1 = -V10 / A1 = -0.05 m, and its x1 reads -0.06 m
+    msgs = [(f"{NS}/rig/bad/config", orjson.dumps(RigConfig(V10=0.0004).model_dump(mode="json")))]
+    for k in range(30):
+        for rig, x1 in (("bad", -0.06), ("good", 0.01)):
+            msgs.append((f"{NS}/rig/{rig}/sample", sample_bytes(k, k * 0.01, [2.0, x1, 6e6, 4e6, 1e-5])))
+    core.process(msgs)
+    assert core.counters.accepted == 60
+    assert x1_clamped_line(core).endswith(": bad 28 sample(s)")  # the gate holds the last two
+    assert x1_clamped_line(MonitorCore(NS)) is None

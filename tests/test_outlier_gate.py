@@ -197,3 +197,4 @@ def test_an_x1_that_would_empty_a_chamber_leaves_the_state_finite():
     assert np.all(np.isfinite(fleet.states[0]))
     assert np.all(np.isfinite(fleet.states[0, O_SVF_C:O_SVF_C + 60]))
     assert np.isfinite(fleet.estimate(0).params["inv_beta_e"])
+    assert fleet.x1_clamped(0) == 10  # and counted, for evaluate and the monitor to report

@@ -53,4 +53,18 @@ def run(args) -> int:
     print(f"hydromon monitor: {len(core.rigs)} rig(s), {c.accepted} samples, {c.health} health messages; "
           f"rejected: {rejected}; dropped seq {c.dropped_seq}, gaps {c.gaps} ({c.missing} samples missing), "
           f"restarts {c.restarts}", file=sys.stderr)
+    line = x1_clamped_line(core)
+    if line:
+        print(f"hydromon monitor: {line}", file=sys.stderr)
     return 0
+
+
+def x1_clamped_line(core) -> str | None:
+    """The rigs whose x1 would have emptied a chamber, for the exit summary (None if none)."""
+    clamped = {rig: core.fleet.x1_clamped(r.row) for rig, r in core.rigs.items()}
+    clamped = {rig: n for rig, n in sorted(clamped.items()) if n}
+    if not clamped:
+        return None
+    return ("x1 beyond a chamber's end (rig constants A1, A2, V10, V20 or x1's zero, sign or unit wrong; "
+            "their chamber parameters are not to be trusted): "
+            + ", ".join(f"{rig} {n} sample(s)" for rig, n in clamped.items()))
