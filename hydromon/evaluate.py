@@ -64,6 +64,7 @@ class Evaluation:
     history: Events | None = None  # every evaluation of the run (sample index into the recording)
     ranges: Ranges | None = None  # the health ranges graded against
     x1_clamped: int = 0  # samples whose x1 would have emptied a chamber (config or x1 wrong)
+    options: IdentOptions | None = None  # the identifier's options (None: defaults)
 
     @property
     def status(self) -> str:
@@ -215,7 +216,7 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     events, assessment = pipe.run(recording.samples, recording.restarts)
     ref = _refine(recording, options, assessment) if refined else None
     return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events, pipe.fleet.ranges,
-                      pipe.fleet.x1_clamped(0))
+                      pipe.fleet.x1_clamped(0), options)
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

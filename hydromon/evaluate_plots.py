@@ -51,7 +51,10 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
         raise ValueError("this evaluation has no history to plot (evaluate() keeps it)")
     rec, h = ev.recording, ev.history
     out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"plots directory {str(directory)!r}: {exc.strerror or exc}") from None
     stem = stem or f"{Path(rec.source).stem}-{rec.rig}"
     t_ev = rec.t[h.sample] if len(h) else np.empty(0)
     t_gap = [rec.t[i] for i in rec.restarts]
@@ -133,7 +136,7 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
     save(fig, "params")
 
     # signals, with the glitches the gate replaced
-    g, _ = gated(rec.samples, restarts=rec.restarts)
+    g, _ = gated(rec.samples, ev.options, restarts=rec.restarts)
     replaced = g != rec.samples
     markers = {}
     fig, axes = plt.subplots(4, 1, figsize=(9, 8), sharex=True)

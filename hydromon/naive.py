@@ -210,15 +210,16 @@ class NaiveIdentifier:
                     out[ch] = 0.5 * (left + right[ch])
                     self.outliers[c] += 1.0
                     continue
-                dev = 0.5 * (mid[ch] + right[ch]) - 0.5 * (left + far[ch])
-                pa, pb = mid[ch] - left, right[ch] - far[ch]
-                if 4.0 * dev * dev > g2 * self.gate_s[c] and pa * dev > 0 and pb * dev > 0 \
-                        and min(abs(pa), abs(pb)) > 0.5 * abs(dev) and abs(mid[ch] - right[ch]) < 0.5 * abs(dev) \
-                        and abs(far[ch] - left) < abs(dev):
-                    out[ch] = left + (far[ch] - left) / 3.0
-                    right[ch] = left + 2.0 * (far[ch] - left) / 3.0
-                    self.outliers[c] += 2.0
-                    continue
+                if c < 3:  # x1, x3, x4 (not x5: the spool's own peaks last two samples)
+                    dev = 0.5 * (mid[ch] + right[ch]) - 0.5 * (left + far[ch])
+                    pa, pb = mid[ch] - left, right[ch] - far[ch]
+                    if dev * dev > g2 * self.gate_s[c] and pa * dev > 0 and pb * dev > 0 \
+                            and min(abs(pa), abs(pb)) > 0.75 * abs(dev) and abs(mid[ch] - right[ch]) < 0.25 * abs(dev) \
+                            and abs(far[ch] - left) < 0.25 * abs(dev):
+                        out[ch] = left + (far[ch] - left) / 3.0
+                        right[ch] = left + 2.0 * (far[ch] - left) / 3.0
+                        self.outliers[c] += 2.0
+                        continue
                 v = min(v, 100.0 * self.gate_s[c])
             self.gate_s[c] += w * (v - self.gate_s[c])
         return out

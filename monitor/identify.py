@@ -343,17 +343,18 @@ def _gate(st, hyper, ug, x1, x3, x4, x5, out):
                 out[ch] = 0.5 * (left + right)
                 st[O_OUTLIERS + c] += 1.0
                 continue  # a glitch does not count toward the scale
-            far = st[O_GATE + N_CH + ch]
-            dev = 0.5 * (mid + right) - 0.5 * (left + far)  # the pair's departure from its ends
-            pa = mid - left
-            pb = right - far
-            if 4.0 * dev * dev > hyper[H_GATE2] * cur and pa * dev > 0.0 and pb * dev > 0.0 \
-                    and min(abs(pa), abs(pb)) > 0.5 * abs(dev) and abs(mid - right) < 0.5 * abs(dev) \
-                    and abs(far - left) < abs(dev):
-                out[ch] = left + (far - left) / 3.0
-                st[O_GATE + ch] = left + 2.0 * (far - left) / 3.0
-                st[O_OUTLIERS + c] += 2.0
-                continue
+            if c < 3:  # x1, x3, x4 (not x5: the spool's own peaks last two samples)
+                far = st[O_GATE + N_CH + ch]
+                dev = 0.5 * (mid + right) - 0.5 * (left + far)  # the pair's departure from its ends
+                pa = mid - left
+                pb = right - far
+                if dev * dev > hyper[H_GATE2] * cur and pa * dev > 0.0 and pb * dev > 0.0 \
+                        and min(abs(pa), abs(pb)) > 0.75 * abs(dev) and abs(mid - right) < 0.25 * abs(dev) \
+                        and abs(far - left) < 0.25 * abs(dev):
+                    out[ch] = left + (far - left) / 3.0
+                    st[O_GATE + ch] = left + 2.0 * (far - left) / 3.0
+                    st[O_OUTLIERS + c] += 2.0
+                    continue
             if v > 100.0 * cur:
                 v = 100.0 * cur
         st[O_GATE_S + c] = cur + w * (v - cur)
@@ -371,6 +372,12 @@ def _gate_record(st, hyper, samples, out):
             for ch in range(N_CH):  # the released sample is the next one's left neighbour
                 st[O_RING + ch] = s[ch]
             st[O_N] += 1.0
+    # the samples the gate still holds, as it holds them (the second of a burst is replaced
+    # where it is held, and counted, before it is released)
+    h = int(st[O_GATE_HAS])
+    for j in range(h):
+        for ch in range(N_CH):
+            out[samples.shape[0] - h + j, ch] = st[O_GATE + j * N_CH + ch]
     return k
 
 
@@ -378,10 +385,10 @@ def gated(samples: np.ndarray, options: IdentOptions | None = None,
           restarts=()) -> tuple[np.ndarray, np.ndarray]:
     """A record (N, 5) as the identifier sees it after its outlier gate, and the glitches
     replaced per sensor (x1, x3, x4, x5). The last two samples, which the gate still holds in
-    a stream, come back as they are. For whole-record methods (``monitor.refine``) and plots that
+    a stream, come back as it holds them (unjudged, but the second of a burst replaced). For whole-record methods (``monitor.refine``) and plots that
     should see what the streaming estimates saw. ``restarts``: indices of samples that follow
     a gap, where the stream restarts its filters (``reset_signals``; the samples the gate
-    held before the gap come back as they are)."""
+    held before the gap come back as it held them)."""
     samples = np.ascontiguousarray(samples, dtype=np.float64)
     if samples.ndim != 2 or samples.shape[1] != N_CH:
         raise ValueError(f"samples must be (N, {N_CH}) = (ug, x1, x3, x4, x5), got {samples.shape}")

@@ -282,3 +282,28 @@ def test_an_x1_beyond_a_chamber_is_reported(g4_run, capsys):
     assert expected > 100 and to_json(ev)["x1_outside_chambers"] == ev.x1_clamped == expected
     render(ev)
     assert "beyond a chamber's end" in capsys.readouterr().out
+
+
+def test_plot_markers_count_a_burst_the_gate_still_holds(g4_run, tmp_path):
+    from hydromon.evaluate_plots import plot_evaluation
+
+    keep = np.r_[0:400, 420:len(g4_run.t)]
+    samples = g4_run.samples[keep].copy()
+    # bursts judged by the last sample before the gap and by the record's last sample: the
+    # second of each is replaced (and counted) where the gate holds it, and never released
+    samples[397:399, 2] += 2e7
+    samples[-3:-1, 3] -= 2e7
+    p = tmp_path / "bursts.csv"
+    p.write_text(csv_text(g4_run.t[keep], samples))
+    ev = evaluate(load_recording(p))
+    assert ev.glitches == {"x1": 0, "x3": 2, "x4": 2, "x5": 0}
+    assert plot_evaluation(ev, tmp_path / "plots").glitch_markers == ev.glitches
+
+
+def test_plots_into_a_file_is_a_clear_error_after_the_result(g4_csv, tmp_path, capsys):
+    target = tmp_path / "a-file"
+    target.write_text("")
+    assert main(["evaluate", str(g4_csv), "--json", "--plots", str(target)]) == 2
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["grade"] == "average"  # the evaluation is not lost
+    assert "plots directory" in captured.err

@@ -52,8 +52,9 @@ def test_glitches_are_replaced_and_leave_the_estimates(realistic_run):
         assert abs(dirty.params[name] - value) <= 0.05 * clean.std_errors[name], name
 
 
-# two consecutive samples off (a burst), per sensor: (first index, column, offsets)
-PAIRS = ((800, 1, (0.04, 0.05)), (1100, 2, (3e7, 2.5e7)), (1400, 3, (-2e7, -2e7)), (1700, 4, (8e-4, 1e-3)))
+# two consecutive samples off (a burst), per sensor: (first index, column, offsets); not x5,
+# whose own peaks last two samples (the spool at 100 rad/s sampled at 100 Hz)
+PAIRS = ((800, 1, (0.045, 0.05)), (1100, 2, (3e7, 2.7e7)), (1400, 3, (-2e7, -2e7)))
 
 
 def _paired(samples):
@@ -66,7 +67,7 @@ def _paired(samples):
 def test_glitch_pairs_are_replaced_and_leave_the_estimates(realistic_run):
     clean, _ = _run(realistic_run.samples)
     dirty, counts = _run(_paired(realistic_run.samples))
-    assert counts.tolist() == [2, 2, 2, 2]  # both samples of each burst, nothing else
+    assert counts.tolist() == [2, 2, 2, 0]  # both samples of each burst, nothing else
     assert dirty.grade == clean.grade
     for name, value in clean.params.items():
         assert abs(dirty.params[name] - value) <= 0.05 * clean.std_errors[name], name
@@ -142,8 +143,8 @@ def test_a_lone_jump_is_replaced_a_step_is_not(col, k, size, sign, freqs):
 
 
 @settings(max_examples=25, deadline=None)
-@given(col=st.sampled_from([1, 2, 3, 4]), k=st.integers(80, 380), size=st.floats(20.0, 1e4),
-       ratio=st.floats(0.75, 1.0), sign=st.sampled_from([-1.0, 1.0]),
+@given(col=st.sampled_from([1, 2, 3]), k=st.integers(80, 380), size=st.floats(20.0, 1e4),
+       ratio=st.floats(0.9, 1.0), sign=st.sampled_from([-1.0, 1.0]),
        freqs=st.lists(st.floats(0.2, 8.0), min_size=2, max_size=3))
 def test_a_pair_of_jumps_is_replaced_a_two_sample_plateau_step_is_not(col, k, size, ratio, sign, freqs):
     n = 400
@@ -163,6 +164,23 @@ def test_a_pair_of_jumps_is_replaced_a_two_sample_plateau_step_is_not(col, k, si
     step[k + 1:, col] += sign * size * unit
     _, counts = _run(step)
     assert counts.sum() == 0
+
+
+def test_a_record_that_starts_mid_run_keeps_the_spools_own_peaks():
+    """The spool overshoots a command step for two samples; a pair test on x5 took those peaks
+    for a burst when the gate's scale had not seen the start from rest (review finding: valve
+    parameters 20-24 % off, the grade sub-health instead of health)."""
+    from monitor.pipeline import Pipeline
+    from plant_sim.simulate import simulate
+
+    run = simulate(PaperVariable(), 10.0, seed=0)
+    truth = run.params.identified()
+    for start in (4, 5, 50):
+        pipe = Pipeline()
+        _, a = pipe.run(run.samples[start:])
+        assert a.grade == "health"
+        for k in ("two_zeta_omega", "omega_sv2", "K_sv_omega_sv2"):
+            assert abs(a.params[k] / truth[k] - 1) < 0.005, (start, k)
 
 
 def test_gated_record_is_what_the_stream_saw(realistic_run):

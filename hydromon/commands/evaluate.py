@@ -36,13 +36,13 @@ def run(args) -> int:
         print(f"hydromon evaluate: refining over {len(rec.samples) / rec.config.sample_rate:g} s of data "
               f"(about {0.1 * len(rec.samples) / rec.config.sample_rate:.0f} s)", file=sys.stderr)
     result = evaluate(rec, ranges=ranges, refined=args.refine)
+    if args.json:  # the evaluation first: a plotting error must not lose it
+        print(json.dumps(to_json(result)), flush=True)
+    else:
+        render(result)
     if args.plots:
         from hydromon.evaluate_plots import plot_evaluation
 
         for path in plot_evaluation(result, args.plots).files:
             print(f"hydromon evaluate: wrote {path}", file=sys.stderr)
-    if args.json:
-        print(json.dumps(to_json(result)))
-    else:
-        render(result)
     return 0
