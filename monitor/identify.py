@@ -107,8 +107,9 @@ class IdentOptions(BaseModel):
     outlier_gate : float
         Sensor glitches: a sample of x1, x3, x4 or x5 that jumps away from both neighbours,
         with a centred second difference above outlier_gate times the channel's running rms
-        of it, is replaced by its neighbours' mean and counted (0 = off). Every sample waits
-        one sample for its right neighbour. Measured (paper's input, realistic noise, 20 s):
+        of it, is replaced by its neighbours' mean and counted (0 = off); a burst of two on
+        x1, x3 or x4 goes onto the line between its neighbours (see ``_gate``). Every sample
+        waits two samples for its right neighbours. Measured (paper's input, realistic noise, 20 s):
         one x3 sample 30 MPa off left the chamber parameters 66-98 % off for good, and one
         x1 sample 5 cm off graded a healthy rig `fault`.
     """
