@@ -123,7 +123,7 @@ class IdentOptions(BaseModel):
     step_tol: float = Field(0.1, gt=0)
     bias_compensation: bool = True
     instrumental_variables: bool = True
-    iv_start: int = Field(100, ge=10)
+    iv_start: int = Field(30, ge=10)
     p0: float = Field(1e9, gt=0)
     p_max: float = Field(1e13, gt=0)
     noise_window: int = Field(2000, ge=10)

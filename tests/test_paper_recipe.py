@@ -34,7 +34,8 @@ def test_noise_free_table2_within_a_few_percent(clean_run):
 
 def test_stress_noise_biases_the_paper_recipe_not_ours():
     """At 'stress' noise the T-D derivatives in the regressors (chambers) and in the target
-    (valve, -x6') bias the paper's estimates low on every seed; our recipe stays within 1 %."""
+    (valve, -x6') bias the paper's estimates low on every seed; ours stay within 1 % (chambers)
+    and 2 % (valve)."""
     for seed in (1, 2):
         run = simulate(PaperIdentification(), 10.0, noise=noise_model("stress"), seed=seed)
         true = run.params.identified()
@@ -44,9 +45,11 @@ def test_stress_noise_biases_the_paper_recipe_not_ours():
         for k in ("inv_beta_e", "CdW_sqrt_rho", "C_ip"):
             assert paper[k] < -0.03, (seed, k, paper[k])
             assert abs(ours[k]) < 0.01, (seed, k, ours[k])
+        # the valve within the issue's stress target for K_sv omega^2 (2 %); measured with
+        # iv_start 30: -1.0 % worst (seeds 1, 2), 0.87 % mean over seeds 0-9
         for k in ("two_zeta_omega", "omega_sv2", "K_sv_omega_sv2"):
             assert paper[k] < -0.25, (seed, k, paper[k])
-            assert abs(ours[k]) < 0.01, (seed, k, ours[k])
+            assert abs(ours[k]) < 0.02, (seed, k, ours[k])
 
 
 def test_causal_history_and_prefix(clean_run):
