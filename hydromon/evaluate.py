@@ -20,7 +20,7 @@ import numpy as np
 
 from hydromon.contract import PARAM_NAMES, SAMPLE_LIMITS
 from monitor.grading import Ranges
-from monitor.identify import IdentOptions
+from monitor.identify import V_MIN, IdentOptions
 from monitor.pipeline import Assessment, Events, Pipeline
 from monitor.refine import REFINED, Refinement, refine
 from plant_sim.params import RigConfig
@@ -297,9 +297,10 @@ def render(ev: Evaluation, console=None) -> None:
                       "sample(s) skipped: the filters restarted after each gap, the estimates carried on[/yellow]")
     if ev.x1_clamped:
         c = r.config
-        console.print(f"[red]{ev.x1_clamped} sample(s) put x1 beyond a chamber's end (x1 < {-c.V10 / c.A1:.4g} m or "
-                      f"> {c.V20 / c.A2:.4g} m empties one: V_i0 / A_i of the rig constants): the rig constants or "
-                      "x1's zero, sign or unit are wrong, and the chamber parameters are not to be trusted[/red]")
+        lo, hi = -(1 - V_MIN) * c.V10 / c.A1, (1 - V_MIN) * c.V20 / c.A2
+        console.print(f"[red]{ev.x1_clamped} sample(s) put x1 at a chamber's end (x1 < {lo:.4g} m or > {hi:.4g} m "
+                      "leaves a chamber under 1 % of its volume V_i0): the rig constants or x1's zero, sign or "
+                      "unit are wrong, and the chamber parameters are not to be trusted[/red]")
     if ev.glitches and any(ev.glitches.values()):
         what = ", ".join(f"{n} {k}" for k, n in ev.glitches.items() if n)
         console.print(f"[yellow]sensor glitches replaced by their neighbours' mean: {what}[/yellow]")
