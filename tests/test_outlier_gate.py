@@ -119,19 +119,24 @@ def _synthetic(n):
     return s
 
 
-@settings(max_examples=25, deadline=None)
-@given(col=st.sampled_from([1, 2, 3, 4]), k=st.integers(80, 380), size=st.floats(20.0, 1e4),
-       sign=st.sampled_from([-1.0, 1.0]), freqs=st.lists(st.floats(0.2, 8.0), min_size=2, max_size=3))
-def test_a_lone_jump_is_replaced_a_step_is_not(col, k, size, sign, freqs):
-    n = 400
+def _moving(col, freqs, n=400):
+    """_synthetic samples with a smooth motion of 1 % of the channel on column col, and the
+    jump unit: far above both the channel's usual 2nd difference and its motion per sample
+    (a jump the size of one sample's motion is a kink, not a glitch: the gate cannot tell
+    the two apart)."""
     base = _synthetic(n)
     mag = np.abs(base[0, col])
     sig = _smooth(n, [0.01 * mag] * len(freqs), freqs)
     base[:, col] += sig
-    # far above both the channel's usual 2nd difference and its motion per sample (a jump the
-    # size of one sample's motion is a kink, not a glitch; with one sample of lookahead the two
-    # cannot be told apart)
     unit = max(np.sqrt(np.mean(np.diff(sig, 2) ** 2)), np.abs(np.diff(sig)).max(), 1e-9 * mag)
+    return base, unit
+
+
+@settings(max_examples=25, deadline=None)
+@given(col=st.sampled_from([1, 2, 3, 4]), k=st.integers(80, 380), size=st.floats(20.0, 1e4),
+       sign=st.sampled_from([-1.0, 1.0]), freqs=st.lists(st.floats(0.2, 8.0), min_size=2, max_size=3))
+def test_a_lone_jump_is_replaced_a_step_is_not(col, k, size, sign, freqs):
+    base, unit = _moving(col, freqs)
     glitch = base.copy()
     glitch[k, col] += sign * size * unit
     _, counts = _run(glitch)
@@ -147,12 +152,7 @@ def test_a_lone_jump_is_replaced_a_step_is_not(col, k, size, sign, freqs):
        ratio=st.floats(0.9, 1.0), sign=st.sampled_from([-1.0, 1.0]),
        freqs=st.lists(st.floats(0.2, 8.0), min_size=2, max_size=3))
 def test_a_pair_of_jumps_is_replaced_a_two_sample_plateau_step_is_not(col, k, size, ratio, sign, freqs):
-    n = 400
-    base = _synthetic(n)
-    mag = np.abs(base[0, col])
-    sig = _smooth(n, [0.01 * mag] * len(freqs), freqs)
-    base[:, col] += sig
-    unit = max(np.sqrt(np.mean(np.diff(sig, 2) ** 2)), np.abs(np.diff(sig)).max(), 1e-9 * mag)
+    base, unit = _moving(col, freqs)
     burst = base.copy()
     burst[k, col] += sign * size * unit
     burst[k + 1, col] += sign * ratio * size * unit
