@@ -17,7 +17,7 @@ from plant_sim.params import PlantParams, RigConfig
 from plant_sim.profiles import PaperIdentification
 from plant_sim.simulate import simulate_fleet
 
-SHOWN = ("B_fv", "f_c", "inv_beta_e", "CdW_sqrt_rho", "C_ip", "K_sv_omega_sv2")
+SHOWN = ("B_fv", "f_c", "inv_beta_e", "CdW_sqrt_rho", "C_ip", "K_sv_omega_sv2", "K_sv")
 
 
 def table(noise: str, seconds: float, seeds: int = 10):

@@ -31,7 +31,7 @@ GRADES = ("health", "sub-health", "average", "deterioration", "fault")
 STATUSES = ("converging", "ok", "stale", "bad-input")
 PARAM_NAMES = (
     "m", "B_fv", "f_c", "K_t", "inv_beta_e", "CdW_sqrt_rho", "C_ip", "C_ep",
-    "two_zeta_omega", "omega_sv2", "K_sv_omega_sv2",
+    "two_zeta_omega", "omega_sv2", "K_sv_omega_sv2", "K_sv",
 )
 RIG_ID_RE = re.compile(r"[A-Za-z0-9_-]{1,64}")
 _NS_RE = re.compile(r"[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*")

@@ -35,6 +35,7 @@ PARAM_UNITS = {
     "m": "kg", "B_fv": "N s/m", "f_c": "N", "K_t": "N/m", "inv_beta_e": "1/Pa",
     "CdW_sqrt_rho": "m^2.5/kg^0.5", "C_ip": "m^3/(s Pa)", "C_ep": "m^3/(s Pa)",
     "two_zeta_omega": "rad/s", "omega_sv2": "rad^2/s^2", "K_sv_omega_sv2": "m/(V s^2)",
+    "K_sv": "m/V",
 }
 
 

@@ -335,11 +335,12 @@ class NaiveIdentifier:
         return st
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:
-        """(params, std_errors), 11 each in PARAM_NAMES order (SI), by the shared read-out."""
+        """(params, std_errors), each in PARAM_NAMES order (SI), by the shared read-out."""
         from monitor.estimates import estimates
+        from monitor.identify import N_PARAMS
 
         k = self._kernels
-        p = np.empty(11)
-        s = np.empty(11)
+        p = np.empty(N_PARAMS)
+        s = np.empty(N_PARAMS)
         estimates(self.state_row(), k.hyper, k.g_f, k.g_c, p, s)
         return p, s

@@ -104,7 +104,7 @@ def _table2(noise: str, seeds: int, config: RigConfig, refined: bool = False):
                            true=true)
             se = a.std_errors
     rows = []
-    for k in PARAM_NAMES:
+    for k in PAPER_TABLE2:  # the paper's rows (K_sv, the static gain, is ours only)
         o, p = ours_runs[0][k], paper_runs[0][k]
         row = {"name": k, "true": true[k], "paper": PAPER_TABLE2[k], "ours": o, "rel_err": _rel(o, true[k]),
                "ours_std_error": se[k] if math.isfinite(se[k]) else None,

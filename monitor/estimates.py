@@ -3,7 +3,13 @@
 Pure kernels, run when a result is wanted (not on every sample). In PARAM_NAMES order
 (hydromon.contract): m [kg], B_fv [N s/m], f_c [N], K_t [N/m], inv_beta_e [1/Pa],
 CdW_sqrt_rho [m^2.5/kg^0.5], C_ip, C_ep [m^3/(s Pa)], two_zeta_omega [rad/s],
-omega_sv2 [rad^2/s^2], K_sv_omega_sv2 [m/(V s^2)].
+omega_sv2 [rad^2/s^2], K_sv_omega_sv2 [m/(V s^2)], K_sv [m/V].
+
+The valve's static gain K_sv is read out on its own, not as K_sv omega^2 / omega^2: it needs
+only the ARX's DC gain, which any input identifies, while omega^2 needs excitation near the
+valve's bandwidth. A record that starts mid-run on a smooth input has none (omega^2 and
+K_sv omega^2 off by the same factor, up to 2x, their ratio within 0.02 %), so grading K_sv
+is what still sees a valve that lost gain.
 
 Standard errors: sigma^2 kappa P, with sigma^2 the residual variance and kappa the
 long-run variance factor 1 + 2 sum_j w_j rho_j of the residuals (Bartlett weights over
@@ -167,9 +173,29 @@ def _valve_physical(th: np.ndarray, h: float, out: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
+def _static_gain(th: np.ndarray, P: np.ndarray, f: float) -> tuple[float, float]:
+    """K_sv [m/V] = X5_NOM (b0 + b1 + b2) / (1 + a1 + a2) and its SE by the (exact) gradient,
+    with f = sigma^2 kappa (inf: SE inf). NaN/inf when the ARX has no DC gain."""
+    den = 1.0 + th[0] + th[1]
+    if den == 0.0:
+        return np.nan, np.inf
+    k = X5_NOM * (th[2] + th[3] + th[4]) / den
+    if not math.isfinite(f):
+        return k, np.inf
+    g = np.empty(5)
+    g[0] = g[1] = -k / den
+    g[2] = g[3] = g[4] = X5_NOM / den
+    acc = 0.0
+    for a in range(5):
+        for b in range(5):
+            acc += g[a] * 0.5 * (P[a, b] + P[b, a]) * g[b]
+    return k, math.sqrt(max(acc * f, 0.0))
+
+
+@njit(cache=True, error_model="numpy")
 def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarray,
               params: np.ndarray, se: np.ndarray) -> None:
-    """Write the 11 physical parameters and their standard errors (NaN/inf where unknown)."""
+    """Write the 12 physical parameters (PARAM_NAMES) and their standard errors (NaN/inf where unknown)."""
     params[:] = np.nan
     se[:] = np.inf
     bc = hyper[H_BC] > 0.0
@@ -219,6 +245,7 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
         s2, kap = _sigma2_kappa(st, (3,), 5)
         for i in range(3):
             params[8 + i] = phys[i]
+        params[11], se[11] = _static_gain(th, P, s2 * kap)
         if math.isfinite(s2) and math.isfinite(phys[0]):
             J = np.zeros((3, 5))
             fp = np.empty(3)

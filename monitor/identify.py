@@ -60,7 +60,7 @@ from .layout import (
 from .rls import riv_update, rls_update
 from .svf import noise_gram, svf_bank_init, svf_bank_step, svf_matrices
 
-N_PARAMS = 11
+N_PARAMS = 12  # PARAM_NAMES: the paper's 11 and the valve's static gain K_sv
 
 # Nominal magnitudes: regressors are scaled so every RLS parameter is O(1).
 THETA_NOM_F = np.array([100.0, 1e4, 10.0, 1e6])  # m [kg], B+f_v [N s/m], f_c [N], K_t [N/m]

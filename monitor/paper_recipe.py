@@ -116,7 +116,7 @@ class PaperRecipe:
 @dataclass(frozen=True)
 class PaperResult:
     """Estimates of the paper's recipe: ``params`` by PARAM_NAMES (SI) after the last row,
-    and ``history`` (N, 11) of the estimates after each sample (NaN before the first row),
+    and ``history`` (N, 12) of the estimates after each sample (NaN before the first row),
     for plots like the paper's Figs 10-12; ``shift`` the derivative-vs-value lag per T-D
     stage used for alignment [samples]."""
 
@@ -238,7 +238,7 @@ def _identify(y, Y, nom, ynom, start, p0):
 
 def identify_paper(samples: np.ndarray, config: RigConfig | None = None,
                    recipe: PaperRecipe | None = None, full: bool = False):
-    """Identify the 11 parameters with the paper's recipe (module docstring).
+    """Identify the parameters (the paper's 11 and K_sv) with the paper's recipe (module docstring).
 
     Parameters
     ----------
@@ -273,7 +273,9 @@ def identify_paper(samples: np.ndarray, config: RigConfig | None = None,
     x6n = config.x5_span  # valve rows in units of the spool span
     hv = _identify(yv / x6n, Yv / x6n, _NOM_V, _YNOM_V, start, recipe.p0)
     # valve: Psi4 = [2 zeta omega, omega^2, K_sv omega^2]; its du column was -du, so K_sv w^2 = +theta
-    hist = np.column_stack([hf, hc, hv])
+    # the valve's static gain, which the paper does not report, as the ratio of its two
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hist = np.column_stack([hf, hc, hv, hv[:, 2] / hv[:, 1]])
     params = dict(zip(PARAM_NAMES, map(float, hist[-1])))
     if full:
         return PaperResult(params=params, history=hist, shift=float(shift))

@@ -77,7 +77,7 @@ def assess_rig(st, hyper, g_f, g_c, min_rows, p, s):
     piston barely moves and that equation is unidentifiable (the grade then comes from the rest).
     """
     estimates(st, hyper, g_f, g_c, p, s)
-    for eq, lo, hi in ((0, 0, 4), (1, 4, 8), (2, 8, 11)):
+    for eq, lo, hi in ((0, 0, 4), (1, 4, 8), (2, 8, 12)):
         if st[O_ROWS + eq] < min_rows:
             for j in range(lo, hi):
                 s[j] = np.inf
@@ -390,6 +390,10 @@ class Fleet:
         physical, so the rig constants (A1, A2, V10, V20) or x1's zero, sign or unit are wrong;
         the chamber rows took the clamped volume and their parameters are not to be trusted."""
         return int(self.states[rig, O_CLAMPED])
+
+    def x1_clamped_all(self) -> np.ndarray:
+        """:meth:`x1_clamped` of every rig, (n_rigs,) int64, in row order."""
+        return self.states[:len(self), O_CLAMPED].astype(np.int64)
 
     def estimate(self, rig: int) -> Assessment:
         """Evaluate one rig now (does not move its hysteresis state)."""

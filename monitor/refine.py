@@ -43,7 +43,10 @@ from plant_sim.params import (
 __all__ = ["Refinement", "refine", "sensor_noise", "REFINED"]
 
 N_STATES = 6
-#: nominal scales of the parameters, in PARAM_NAMES order (the kernels index them so)
+#: the fitted parameters: PARAM_NAMES but the valve's static gain, which is their ratio
+#: K_sv_omega_sv2 / omega_sv2 (derived after the fit, with its delta-method SE)
+FIT_NAMES = PARAM_NAMES[:11]
+#: nominal scales of the parameters, in FIT_NAMES order (the kernels index them so)
 NOMINAL = np.array([100.0, 1e4, 10.0, 1e6, 1e-9, 1e-3, 1e-11, 1e-11, 100.0, 1e4, 1.0])
 #: the ones the refinement is better at than the streaming identifier
 REFINED = ("m", "B_fv", "f_c", "K_t", "inv_beta_e", "CdW_sqrt_rho", "C_ip", "C_ep")
@@ -107,7 +110,7 @@ def innovations(meas, ug, th, base, h, sig, q, n0):
     """Whitened one-step innovations (from sample n0 on) of the EKF over the whole model
     (``plant_sim.model.derivatives``, the simulator's own equations).
 
-    meas (N, 4) = x1 [m], p1 [Pa], p2 [Pa], x5 [m]; ug (N,) [V]; th (11,) SI in PARAM_NAMES
+    meas (N, 4) = x1 [m], p1 [Pa], p2 [Pa], x5 [m]; ug (N,) [V]; th (11,) SI in FIT_NAMES
     order; base: the rig's plant vector (its constants; effects off); sig (4,) sensor noise
     rms; q (6,) process noise per step. NaN in the output if the filter blows up.
     """
@@ -171,6 +174,20 @@ class Refinement:
     noise: dict[str, float] = field(default_factory=dict)
 
 
+
+def _with_static_gain(th: np.ndarray, cov: np.ndarray | None):
+    """Parameters by PARAM_NAMES from the fitted th (FIT_NAMES, SI): K_sv = K_sv omega^2 /
+    omega^2 [m/V] appended. With cov [SI] also the static gain's SE (delta method)."""
+    j_w2, j_kw2 = FIT_NAMES.index("omega_sv2"), FIT_NAMES.index("K_sv_omega_sv2")
+    k = float(th[j_kw2] / th[j_w2]) if th[j_w2] != 0 else math.nan
+    params = dict(zip(PARAM_NAMES, (*map(float, th), k)))
+    if cov is None:
+        return params
+    g = np.zeros(th.size)
+    g[j_kw2], g[j_w2] = 1.0 / th[j_w2], -k / th[j_w2]
+    return params, float(math.sqrt(max(g @ cov @ g, 0.0)))
+
+
 def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip: float = 0.5,
            noise: np.ndarray | None = None, max_evaluations: int = 400,
            options: IdentOptions | None = None) -> Refinement:
@@ -203,7 +220,7 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
     if samples.shape[0] < n0 + 100:
         raise ValueError(f"{samples.shape[0]} samples: the refinement needs at least {n0 + 100}")
     sig = sensor_noise(samples) if noise is None else np.maximum(np.asarray(noise, dtype=np.float64), NOISE_FLOOR)
-    th0 = np.array([start.get(k, math.nan) for k in PARAM_NAMES], dtype=np.float64)
+    th0 = np.array([start.get(k, math.nan) for k in FIT_NAMES], dtype=np.float64)
     th0 = np.where(np.isfinite(th0) & (th0 != 0), th0, NOMINAL)
     base = plant_vector(config, PlantParams())  # the rig's constants; the parameters come from th
     meas, ug = np.ascontiguousarray(samples[:, 1:5]), np.ascontiguousarray(samples[:, 0])
@@ -213,8 +230,7 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
         return np.where(np.isfinite(w), w, 1e6)
 
     noise_d = dict(zip(("x1", "x3", "x4", "x5"), map(float, sig)))
-    fail = Refinement(dict(zip(PARAM_NAMES, map(float, th0))), dict.fromkeys(PARAM_NAMES, math.inf), False, "", 0,
-                      noise_d)
+    fail = Refinement(_with_static_gain(th0, None), dict.fromkeys(PARAM_NAMES, math.inf), False, "", 0, noise_d)
     try:
         res = least_squares(cost, th0 / NOMINAL, method="lm", x_scale="jac", max_nfev=max_evaluations)
     except (ValueError, np.linalg.LinAlgError) as exc:
@@ -228,7 +244,9 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
     except np.linalg.LinAlgError:
         fail.message = "singular information matrix"
         return fail
-    se = np.sqrt(np.clip(np.diag(cov), 0, None) * max(s2, 1.0)) * NOMINAL
+    cov = cov * max(s2, 1.0) * np.outer(NOMINAL, NOMINAL)
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
     ok = bool(res.success and np.all(np.isfinite(th)) and s2 < 100.0)
-    return Refinement(dict(zip(PARAM_NAMES, map(float, th))), dict(zip(PARAM_NAMES, map(float, se))), ok,
+    params, k_se = _with_static_gain(th, cov)
+    return Refinement(params, dict(zip(PARAM_NAMES, (*map(float, se), k_se))), ok,
                       f"{res.message} (innovation variance {s2:.3f})", int(res.nfev), noise_d)

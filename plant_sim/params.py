@@ -141,6 +141,7 @@ class PlantParams(_Model):
             "two_zeta_omega": 2.0 * self.zeta_sv * self.omega_sv,
             "omega_sv2": w2,
             "K_sv_omega_sv2": self.K_sv * w2,
+            "K_sv": self.K_sv,
         }
 
 

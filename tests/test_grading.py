@@ -50,8 +50,12 @@ def test_table3_bands_and_clamping(name):
 
 def test_table3_file_equals_paper():
     r = Ranges.default()
-    assert set(r.params) == {"K_sv_omega_sv2", "f_c", "B_fv", "C_ip", "C_ep"}
+    assert set(r.params) == {"K_sv_omega_sv2", "K_sv", "f_c", "B_fv", "C_ip", "C_ep"}
     assert r.params["K_sv_omega_sv2"] == ParamRange(direction="falling", edges=(2.2, 1.7, 1.4, 1.0))
+    # ours: the static gain, K_sv omega^2's edges over the paper's omega_sv^2 = 1e4 (which its
+    # degradation leaves fixed, so the two grade the paper's rigs alike)
+    assert r.params["K_sv"] == ParamRange(direction="falling", edges=(2.2e-4, 1.7e-4, 1.4e-4, 1.0e-4))
+    assert np.allclose(np.array(r.params["K_sv"].edges) * 1e4, r.params["K_sv_omega_sv2"].edges, rtol=1e-12)
     assert r.params["f_c"] == ParamRange(direction="rising", edges=(10, 20, 45, 75))
     assert r.params["B_fv"] == ParamRange(direction="rising", edges=(6075, 6150, 6250, 6400))
     for n in ("C_ip", "C_ep"):
@@ -161,7 +165,7 @@ def test_se_gating_f_c():
     assert r.param_levels["f_c"] == 0
     r = g.update({**TRUE, "f_c": 14.0}, {**se, "f_c": 4.0}, True)  # [6, 22]: three bands
     assert r.param_levels["f_c"] == -1
-    assert r.level == 0 and r.confidence == pytest.approx(4 / 5)
+    assert r.level == 0 and r.confidence == pytest.approx(5 / 6)
     assert g.band[g._batch.names.index("f_c")] == 0  # memory kept while not placed
 
 
@@ -204,7 +208,7 @@ def test_bad_inputs_raise():
     with pytest.raises(ValueError, match="f_x"):
         g.update({**TRUE, "f_x": 1.0}, ZERO, True)
     with pytest.raises(ValueError, match="converged"):
-        BatchGrader(2).update(np.zeros((2, 11)), np.zeros((2, 11)), [True])
+        BatchGrader(2).update(np.zeros((2, len(PARAM_NAMES))), np.zeros((2, len(PARAM_NAMES))), [True])
     for kw in ({"z": 0.0}, {"z": math.inf}, {"margin": -0.1}, {"margin": 1.0}):
         with pytest.raises(ValueError):
             Grader(**kw)
@@ -214,7 +218,7 @@ def test_bad_inputs_raise():
 
 def test_inputs_not_mutated():
     v = np.array([TRUE[n] for n in PARAM_NAMES])
-    s = np.full(11, 0.1)
+    s = np.full(len(PARAM_NAMES), 0.1)
     v0, s0 = v.copy(), s.copy()
     Grader().update(v, s, True)
     assert (v == v0).all() and (s == s0).all()
@@ -326,7 +330,7 @@ def test_ranges_json_round_trip(tmp_path):
     assert grade_of_values({**TRUE, "CdW_sqrt_rho": 4.7e-4}, back) == 2
     a = back.to_arrays()
     assert a.names == tuple(n for n in PARAM_NAMES if n in back.params)
-    assert a.edges.shape == (6, 4) and a.sign[a.names.index("CdW_sqrt_rho")] == -1.0
+    assert a.edges.shape == (len(r.params) + 1, 4) and a.sign[a.names.index("CdW_sqrt_rho")] == -1.0
 
 
 @pytest.mark.parametrize("entry, needle", [
@@ -396,14 +400,14 @@ def test_hysteresis_grade_is_monotone_for_a_given_state(case, held):
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.floats(0.0, 0.2), min_size=11, max_size=11), rig_and_pair())
+@given(st.lists(st.floats(0.0, 0.2), min_size=len(PARAM_NAMES), max_size=len(PARAM_NAMES)), rig_and_pair())
 def test_level_is_max_of_placed_and_confidence_bounded(rel_se, case):
     base, _, _, _ = case
     v = np.array([{**TRUE, **base}[n] for n in PARAM_NAMES])
     s = np.abs(v) * np.array(rel_se)
     lv, gr, conf = grade_kernel(v[None], s[None], np.ones(1, np.bool_),
                                 *Ranges.default().to_arrays()[1:], 2.0,
-                                np.full((1, 5), -1, np.int64))
+                                np.full((1, len(Ranges.default().params)), -1, np.int64))
     placed = gr[0][gr[0] >= 0]
     # a parameter straddling exactly one edge is not placed but floors the level at its better side
     floor = -1

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from hydromon.contract import PARAM_NAMES
 from monitor.paper_recipe import PaperRecipe, identify_paper
 from monitor.pipeline import Pipeline
 from plant_sim.noise import noise_model
@@ -26,7 +27,7 @@ def test_noise_free_table2_within_a_few_percent(clean_run):
     rel = _rel(est, true)
     tol = {"m": 0.01, "B_fv": 0.005, "f_c": 0.03, "K_t": 1e-3, "inv_beta_e": 2e-3,
            "CdW_sqrt_rho": 2e-3, "C_ip": 2e-3, "two_zeta_omega": 2e-3, "omega_sv2": 2e-3,
-           "K_sv_omega_sv2": 2e-3}
+           "K_sv_omega_sv2": 2e-3, "K_sv": 2e-3}
     bad = {k: v for k, v in rel.items() if abs(v) > tol[k]}
     assert not bad, bad
     assert abs(est["C_ep"]) < 1e-14  # measured -1.3e-15 (true 0)
@@ -55,7 +56,7 @@ def test_stress_noise_biases_the_paper_recipe_not_ours():
 def test_causal_history_and_prefix(clean_run):
     full = identify_paper(clean_run.samples, full=True)
     head = identify_paper(clean_run.samples[:600], full=True)
-    assert full.history.shape == (1000, 11)
+    assert full.history.shape == (1000, len(PARAM_NAMES))
     assert np.isnan(full.history[:100]).all() and np.isfinite(full.history[100:]).all()  # 1 s warm-up
     np.testing.assert_allclose(head.history[100:], full.history[100:600], rtol=1e-12)
     assert full.shift == pytest.approx(0.5, abs=0.01)

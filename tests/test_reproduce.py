@@ -40,6 +40,7 @@ def test_calibrate_20_runs_gives_valid_monotone_ranges(runs20, tmp_path):
     # noise-free, the calibrated edges land near Table 3's (the degradation follows Table 3)
     np.testing.assert_allclose(cal.ranges.params["f_c"].edges, [10, 20, 45, 75], rtol=0.05)
     np.testing.assert_allclose(cal.ranges.params["K_sv_omega_sv2"].edges, [2.2, 1.7, 1.4, 1.0], rtol=0.02)
+    np.testing.assert_allclose(cal.ranges.params["K_sv"].edges, [2.2e-4, 1.7e-4, 1.4e-4, 1.0e-4], rtol=0.02)
 
 
 def test_calibrated_ranges_grade_table4_like_the_paper(runs20):
@@ -55,6 +56,7 @@ def _synthetic(n=10):
     params[:, PARAM_NAMES.index("f_c")] = 100 * sev  # rising
     params[:, PARAM_NAMES.index("B_fv")] = 6000 + 500 * sev
     params[:, PARAM_NAMES.index("K_sv_omega_sv2")] = 3 - 2 * sev  # falling
+    params[:, PARAM_NAMES.index("K_sv")] = (3 - 2 * sev) * 1e-4
     params[:, PARAM_NAMES.index("C_ip")] = np.where(sev > 0.8, 3e-10, 3e-11)
     params[:, PARAM_NAMES.index("C_ep")] = np.where(sev > 0.8, 3e-10, 0.0)
     return RunResults(sev, 0.04 - 0.01 * sev, params, np.ones(n, bool))
@@ -66,6 +68,7 @@ def test_calibrate_is_midpoints_between_labels():
     np.testing.assert_allclose(cal.ranges.params["f_c"].edges, [20, 40, 60, 80])
     np.testing.assert_allclose(cal.ranges.params["K_sv_omega_sv2"].edges, [2.6, 2.2, 1.8, 1.4])
     assert cal.ranges.params["K_sv_omega_sv2"].direction == "falling"
+    np.testing.assert_allclose(cal.ranges.params["K_sv"].edges, [2.6e-4, 2.2e-4, 1.8e-4, 1.4e-4])
     assert cal.ranges.params["C_ip"].fault_threshold == pytest.approx(1.65e-10)
     assert cal.ranges.params["C_ep"].fault_threshold == pytest.approx(1.5e-10)
     np.testing.assert_allclose(cal.thresholds, [0.038, 0.036, 0.034, 0.032])
@@ -109,7 +112,8 @@ def reproduced(tmp_path_factory):
 def test_reproduce_json_has_the_contract_keys(reproduced):
     doc, _ = reproduced
     assert {"table2", "table3", "table4"} <= set(doc)
-    assert [r["name"] for r in doc["table2"]] == list(PARAM_NAMES)
+    # the paper's Table 2 rows: every parameter but K_sv, the static gain the paper does not report
+    assert [r["name"] for r in doc["table2"]] == [k for k in PARAM_NAMES if k != "K_sv"]
     for r in doc["table2"]:
         assert {"name", "true", "paper", "ours", "rel_err"} <= set(r)
     assert len(doc["table4"]) == 5

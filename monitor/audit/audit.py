@@ -102,7 +102,7 @@ class CandidateResult:
     freerun : dict
         Held-out per-channel {"nrmse", "fit"} of the extended model's free run.
     params : dict
-        The 11 identified parameters of the extended model (bus names, SI).
+        The identified parameters of the extended model (bus names, SI).
     effect : dict
         The fitted extension as ``plant_sim.params.Effects`` fields.
     """

@@ -440,9 +440,9 @@ def fit_blocks(blocks: dict[str, Block], train_end: int, h: float, cache: dict |
 
 
 def nominal_params(fit: Fit, cfg: RigConfig, h: float) -> dict[str, float]:
-    """The 11 identified parameters by bus name (``hydromon.contract.PARAM_NAMES``), SI."""
+    """The identified parameters by bus name (``hydromon.contract.PARAM_NAMES``), SI."""
     f, c, v = fit.theta["force"], fit.theta["chamber"], fit.theta["valve"]
     return {"m": f["m"], "B_fv": f["B_fv"], "f_c": f["f_c"], "K_t": f["K_t"],
             "inv_beta_e": c["inv_beta_e"], "CdW_sqrt_rho": c["CdW_sqrt_rho"], "C_ip": c["C_ip"],
             "C_ep": c["C_ep"], "two_zeta_omega": v["two_zeta_omega"], "omega_sv2": v["omega_sv2"],
-            "K_sv_omega_sv2": v["K_sv"] * v["omega_sv2"]}
+            "K_sv_omega_sv2": v["K_sv"] * v["omega_sv2"], "K_sv": v["K_sv"]}
