@@ -174,7 +174,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
         Where the table goes (default stdout); ``log`` gets progress lines (default stderr).
     """
     from monitor.pipeline import warm_up
-    from hydromon.monitornode import MonitorCore, RateLimitedLog, run_monitor
+    from hydromon.monitornode import MonitorCore, RateLimitedLog, log_rig_warning, run_monitor
     from hydromon.recorder import record
     from hydromon.simnode import run_sim
 
@@ -195,7 +195,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     result = DemoResult(endpoint=endpoint, truth={r.id: true_grade(r) for r in spec.rigs})
     health: dict[str, dict] = {}
     stop_sim, stop_mon, stop_rec = threading.Event(), threading.Event(), threading.Event()
-    core = MonitorCore(namespace, on_reject=RateLimitedLog())
+    core = MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=log_rig_warning)
     path = _recording_path(out_dir)
 
     print("hydromon demo: loading the numerical kernels (compiled once on a fresh machine, "

@@ -50,7 +50,11 @@ from hydromon.edge import REJECT_REASONS, VALUE_LIMITS, Rejected, decode_json, p
 from hydromon.health_json import health_payloads
 from monitor.pipeline import Fleet
 
-__all__ = ["MonitorCore", "MonitorCounters"]
+__all__ = ["MonitorCore", "MonitorCounters", "X1_CLAMPED_WARNING"]
+
+
+X1_CLAMPED_WARNING = ("x1 went beyond a chamber's end: the rig constants (A1, A2, V10, V20) or x1's zero, "
+                      "sign or unit are wrong; its chamber parameters are not to be trusted")
 
 
 @dataclass
@@ -115,13 +119,18 @@ class MonitorCore:
         Samples after a gap during which health says ``stale`` (default eval_every).
     on_reject : callable or None
         Called as ``on_reject(reason, key, detail)`` for every rejected message (logging).
+    on_warning : callable or None
+        Called as ``on_warning(rig_id, message)`` when a rig's x1 first goes beyond a chamber's
+        end (the rig constants or x1 are wrong, so its chamber parameters are not to be
+        trusted); again if it does after a config change restarted the rig's estimates.
     **fleet_kw
         ``monitor.pipeline.Fleet`` hyperparameters (options, ranges, grade_z, grade_margin).
     """
 
     def __init__(self, namespace: str = DEFAULT_NAMESPACE, *, sample_rate: float = 100.0,
                  eval_every: int = 10, stale_samples: int | None = None, stagger: bool = True,
-                 on_reject: Callable[[str, str, str], None] | None = None, **fleet_kw):
+                 on_reject: Callable[[str, str, str], None] | None = None,
+                 on_warning: Callable[[str, str], None] | None = None, **fleet_kw):
         self.namespace = _check_ns(namespace)
         self.eval_every = int(eval_every)
         self.stale_samples = self.eval_every if stale_samples is None else int(stale_samples)
@@ -129,6 +138,8 @@ class MonitorCore:
             raise ValueError(f"stale_samples {stale_samples!r} must be >= 0")
         self.fleet = Fleet(sample_rate=sample_rate, eval_every=eval_every, stagger=stagger, **fleet_kw)
         self.on_reject = on_reject
+        self.on_warning = on_warning
+        self._clamp_warned = np.zeros(0, dtype=np.bool_)  # per row: warned of its clamped x1
         self.counters = MonitorCounters()
         self.rigs: dict[str, _Rig] = {}
         self.configs: dict[str, RigConfig] = {}   # latest valid config per rig id
@@ -174,6 +185,16 @@ class MonitorCore:
         if len(ev):
             self._health(ev, vals[:, 0], out)
         self._clear()
+        if self.on_warning is not None:
+            self._warn_clamped()
+
+    def _warn_clamped(self) -> None:
+        clamped = self.fleet.x1_clamped_all() > 0
+        warned = np.zeros(len(clamped), dtype=np.bool_)
+        warned[:len(self._clamp_warned)] = self._clamp_warned[:len(clamped)]
+        self._clamp_warned = clamped  # a restarted rig (count 0 again) is warned again
+        for r in np.flatnonzero(clamped & ~warned).tolist():
+            self.on_warning(self.fleet.ids[r], X1_CLAMPED_WARNING)
 
     def _health(self, ev, t: np.ndarray, out: list) -> None:
         """Health payloads of a batch's evaluations (``hydromon.health_json``)."""

@@ -35,9 +35,16 @@ from hydromon.monitorcore import MonitorCore, MonitorCounters  # noqa: F401  (re
 from hydromon.quietgc import QuietGC
 from monitor.pipeline import warm_up
 
-__all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "run_monitor", "rig_pattern", "REJECT_REASONS"]
+__all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "log_rig_warning", "run_monitor", "rig_pattern",
+           "REJECT_REASONS"]
 
 log = logging.getLogger(__name__)
+
+
+def log_rig_warning(rig_id: str, message: str) -> None:
+    """``MonitorCore(on_warning=...)`` for the nodes: one log line per warning (they come once
+    per rig and restart, so they need no rate limit)."""
+    log.warning("rig %s: %s", rig_id, message)
 
 
 class RateLimitedLog:
@@ -92,7 +99,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     node_name : str
         Name of the liveliness token ``<ns>/monitor/<node_name>``.
     core : MonitorCore or None
-        The core to run (default: a fresh one with a rate-limited rejection log).
+        The core to run (default: a fresh one with a rate-limited rejection log and rig warnings logged).
     capacity : int
         Messages each FIFO channel holds before zenoh back-pressures the transport.
     max_batch : int
@@ -113,7 +120,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
     _check_ns(namespace)
-    core = core or MonitorCore(namespace, on_reject=RateLimitedLog())
+    core = core or MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=log_rig_warning)
     if core.namespace != namespace:
         raise ValueError(f"core namespace {core.namespace!r} != {namespace!r}")
     warm_up()  # compile before subscribing: the first samples must not queue behind the compiler

@@ -409,3 +409,24 @@ def test_the_exit_summary_names_rigs_whose_x1_empties_a_chamber():
     assert core.counters.accepted == 60
     assert x1_clamped_line(core).endswith(": bad 28 sample(s)")  # the gate holds the last two
     assert x1_clamped_line(MonitorCore(NS)) is None
+
+
+def test_a_rig_whose_x1_empties_a_chamber_is_warned_of_once_while_running():
+    from hydromon.monitorcore import X1_CLAMPED_WARNING
+
+    warnings = []
+    core = MonitorCore(NS, on_warning=lambda rig, msg: warnings.append((rig, msg)))
+    cfg = lambda v10: (f"{NS}/rig/bad/config", orjson.dumps(RigConfig(V10=v10).model_dump(mode="json")))  # noqa: E731
+
+    def samples(k0, n):
+        return [(f"{NS}/rig/{rig}/sample", sample_bytes(k, k * 0.01, [2.0, x1, 6e6, 4e6, 1e-5]))
+                for k in range(k0, k0 + n) for rig, x1 in (("bad", -0.06), ("good", 0.01))]
+
+    core.process([cfg(0.0004)] + samples(0, 10))   # chamber 1 empties at x1 = -0.05 m
+    assert warnings == [("bad", X1_CLAMPED_WARNING)]
+    core.process(samples(10, 20))                     # still clamping: no second warning
+    assert len(warnings) == 1
+    core.process([cfg(0.0004 * 2)] + samples(30, 10))  # corrected constants: V10 / A1 = 0.1 m
+    assert len(warnings) == 1 and core.fleet.x1_clamped(core.rigs["bad"].row) == 0
+    core.process([cfg(0.0004)] + samples(40, 10))     # wrong again: warned again
+    assert warnings == [("bad", X1_CLAMPED_WARNING)] * 2

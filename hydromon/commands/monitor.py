@@ -29,14 +29,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from hydromon.monitornode import MonitorCore, RateLimitedLog, run_monitor
+    from hydromon.monitornode import MonitorCore, RateLimitedLog, log_rig_warning, run_monitor
 
     if args.duration is not None and not args.duration > 0:
         raise ValueError(f"--duration {args.duration} must be > 0 s")
     if args.threads < 1:
         raise ValueError(f"--threads {args.threads} must be >= 1")
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
-                       threads=args.threads)
+                       on_warning=log_rig_warning, threads=args.threads)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
