@@ -32,8 +32,8 @@ from hydromon.fleetfile import FleetSpec, RigSpec, default_fleet
 
 __all__ = ["DemoResult", "run_demo", "true_grade", "TABLE_PARAMS", "render_plain", "render_rich"]
 
-TABLE_PARAMS = ("K_sv_omega_sv2", "f_c", "B_fv", "C_ip")
-"""Parameters shown in the live table (SI: N/(V s^2)-like gain, N, N s/m, m^3/(s Pa))."""
+TABLE_PARAMS = ("K_sv", "f_c", "B_fv", "C_ip")
+"""Parameters shown in the live table (SI: m/V, N, N s/m, m^3/(s Pa)): the graded ones."""
 
 
 def true_grade(rig: RigSpec) -> str | None:

@@ -122,7 +122,8 @@ class MonitorCore:
     on_warning : callable or None
         Called as ``on_warning(rig_id, message)`` when a rig's x1 first goes beyond a chamber's
         end (the rig constants or x1 are wrong, so its chamber parameters are not to be
-        trusted); again if it does after a config change restarted the rig's estimates.
+        trusted); again if it does after a config change or a restart (seq back to 0)
+        restarted the rig's estimates.
     **fleet_kw
         ``monitor.pipeline.Fleet`` hyperparameters (options, ranges, grade_z, grade_margin).
     """
@@ -190,11 +191,19 @@ class MonitorCore:
 
     def _warn_clamped(self) -> None:
         clamped = self.fleet.x1_clamped_all() > 0
-        warned = np.zeros(len(clamped), dtype=np.bool_)
-        warned[:len(self._clamp_warned)] = self._clamp_warned[:len(clamped)]
-        self._clamp_warned = clamped  # a restarted rig (count 0 again) is warned again
-        for r in np.flatnonzero(clamped & ~warned).tolist():
+        if len(self._clamp_warned) < len(clamped):
+            grown = np.zeros(len(clamped), dtype=np.bool_)
+            grown[:len(self._clamp_warned)] = self._clamp_warned
+            self._clamp_warned = grown
+        new = clamped & ~self._clamp_warned
+        self._clamp_warned |= new
+        for r in np.flatnonzero(new).tolist():
             self.on_warning(self.fleet.ids[r], X1_CLAMPED_WARNING)
+
+    def _restarted(self, r: int) -> None:
+        """Row r's estimates restarted (config change, seq restart): warn of it afresh."""
+        if r < len(self._clamp_warned):
+            self._clamp_warned[r] = False
 
     def _health(self, ev, t: np.ndarray, out: list) -> None:
         """Health payloads of a batch's evaluations (``hydromon.health_json``)."""
@@ -253,6 +262,7 @@ class MonitorCore:
             return
         self._flush(out)  # the samples before the change belong to the old constants
         self.fleet.set_config(rig.row, config)
+        self._restarted(rig.row)
         rig.config = config
         self._n[rig.row], self._gap[rig.row] = 0, -1
         self.counters.config_changes += 1
@@ -279,6 +289,7 @@ class MonitorCore:
             if seq == 0 and last > 0:  # the rig restarted (or a replay looped): start afresh
                 self._flush(out)
                 self.fleet.reset(r)
+                self._restarted(r)
                 self._n[r], gap = 0, -1
                 self.counters.restarts += 1
             elif seq == last:

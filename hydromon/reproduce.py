@@ -62,7 +62,7 @@ def _rel(est: float, true: float):
 class History:
     """Estimates over time of the Table 2 run (seed 0), for plots like Figs 10-12.
 
-    t_ours [s] and ours (n, 11): our pipeline's evaluations; t_paper [s] and paper (N, 11):
+    t_ours [s] and ours (n, 12): our pipeline's evaluations; t_paper [s] and paper (N, 12):
     the paper's recipe after each sample (NaN during its warm-up); true: the truth."""
 
     t_ours: np.ndarray
@@ -138,7 +138,7 @@ def _range_dict(r) -> dict | None:
 
 
 def _table3(noise: str, runs: int, config: RigConfig):
-    paper = Ranges.default()
+    paper = Ranges.paper()
     dropped = {}
     if runs > 0:
         cal = calibrate(simulate_runs(runs, noise=noise, config=config), strict=False)
@@ -146,7 +146,7 @@ def _table3(noise: str, runs: int, config: RigConfig):
         source = f"calibration ({runs} runs, noise {noise}; monitor.calibrate)"
     else:
         ours = paper
-        source = "our default ranges (= the paper's Table 3; no calibration run)"
+        source = "our default ranges (the paper's Table 3, the valve on K_sv; no calibration run)"
     names = list(paper.params) + [k for k in ours.params if k not in paper.params]
     rows = []
     for k in names:

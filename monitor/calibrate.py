@@ -56,7 +56,7 @@ class RunResults:
     ----------
     severity : (N,) float, degradation of each run's plant in [0, 1].
     x1_mean : (N,) float, mean measured piston position [m].
-    params : (N, 11) float, identified parameters in PARAM_NAMES order [SI].
+    params : (N, len(PARAM_NAMES)) float, identified parameters in PARAM_NAMES order [SI].
     converged : (N,) bool, the identifier converged.
     """
 
@@ -214,7 +214,7 @@ def identify_fleet(samples: np.ndarray, config: RigConfig | None = None,
                    options: IdentOptions | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Identify many runs together (one ``monitor.pipeline.Fleet``, samples interleaved in time).
 
-    samples : (n_runs, N, 5) ug, x1, x3, x4, x5 [SI]. Returns params (n_runs, 11) [SI] and
+    samples : (n_runs, N, 5) ug, x1, x3, x4, x5 [SI]. Returns params (n_runs, len(PARAM_NAMES)) [SI] and
     converged (n_runs,) after the last sample (the same numbers as ``Pipeline.run`` per run).
     """
     from .pipeline import Fleet

@@ -92,7 +92,7 @@ def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sig
 
     Kept out of the per-sample loop: it runs once per eval_every samples, and a call with this
     many arguments costs more than a sample's identification when made on every sample.
-    ``p``, ``s`` (1, 11) and ``conv`` (1,) are the caller's scratch space.
+    ``p``, ``s`` (1, len(PARAM_NAMES)) and ``conv`` (1,) are the caller's scratch space.
     """
     conv[0] = assess_rig(states[r], hyper, g_f, g_c, min_rows, p[0], s[0])
     level, grades, confidence = grade_kernel(p, s, conv, index, sign, edges, margins, z, bands[r:r + 1])

@@ -1,6 +1,11 @@
-"""Health ranges as data: the graded parameters' band edges between the five grades (the paper's
-Table 3 by default, ``monitor/data/table3.json``), as a pydantic model and as the arrays the
-grading kernel reads. See ``monitor.grading`` for how a value is graded against them.
+"""Health ranges as data: the graded parameters' band edges between the five grades, as a
+pydantic model and as the arrays the grading kernel reads. See ``monitor.grading`` for how a
+value is graded against them.
+
+Two files ship: ``monitor/data/table3.json``, the paper's Table 3 as printed (in SI units), and
+``monitor/data/default_ranges.json``, the default: Table 3 with the valve graded on its static
+gain K_sv (edges / omega_sv^2 = 1e4) instead of K_sv omega^2, which a record without excitation
+at the valve's bandwidth does not identify (see that file's source note).
 """
 
 from __future__ import annotations
@@ -14,9 +19,10 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, mo
 
 from hydromon.contract import GRADES, PARAM_NAMES
 
-__all__ = ["ParamRange", "Ranges", "RangeArrays", "grade_name", "DEFAULT_RANGES_PATH"]
+__all__ = ["ParamRange", "Ranges", "RangeArrays", "grade_name", "DEFAULT_RANGES_PATH", "PAPER_TABLE3_PATH"]
 
-DEFAULT_RANGES_PATH = Path(__file__).with_name("data") / "table3.json"
+PAPER_TABLE3_PATH = Path(__file__).with_name("data") / "table3.json"
+DEFAULT_RANGES_PATH = Path(__file__).with_name("data") / "default_ranges.json"
 
 
 def grade_name(level: int) -> str:
@@ -108,8 +114,13 @@ class Ranges(BaseModel):
 
     @classmethod
     def default(cls) -> Ranges:
-        """The paper's Table 3 (``monitor/data/table3.json``)."""
+        """hydromon's default: Table 3, the valve on K_sv (``monitor/data/default_ranges.json``)."""
         return cls.load(DEFAULT_RANGES_PATH)
+
+    @classmethod
+    def paper(cls) -> Ranges:
+        """The paper's Table 3 as printed (``monitor/data/table3.json``)."""
+        return cls.load(PAPER_TABLE3_PATH)
 
     def save(self, path: str | Path) -> None:
         """Write as JSON (readable by :meth:`load`)."""

@@ -28,7 +28,7 @@ def test_true_grades_and_plain_table():
     h = {"t": 1.5, "grade": "fault", "confidence": 0.6, "status": "ok",
          "params": {"f_c": 96.8, "B_fv": 6740.0}}
     text = render_plain(["table4-g3", "table4-g1"], {"table4-g3": h}, truth).splitlines()
-    assert text[0].split() == ["rig", "grade", "conf", "status", "K_sv_omega_sv2", "f_c", "B_fv", "C_ip",
+    assert text[0].split() == ["rig", "grade", "conf", "status", "K_sv", "f_c", "B_fv", "C_ip",
                                "t", "[s]", "true"]
     assert text[1].split() == ["table4-g3", "fault", "0.60", "ok", "-", "96.8", "6740", "-", "1.5", "fault"]
     assert text[2].split() == ["table4-g1", "-", "-", "waiting", "-", "-", "-", "-", "-", "sub-health"]

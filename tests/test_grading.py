@@ -17,6 +17,7 @@ from hydromon.contract import PARAM_NAMES
 from monitor.grading import (
     BatchGrader, Grader, ParamRange, Ranges, grade_kernel, grade_name, grade_of_values,
 )
+from plant_sim.degradation import degrade
 from plant_sim.params import PlantParams
 
 TRUE = PlantParams().identified()  # a healthy rig: every graded parameter in grade 0
@@ -35,8 +36,9 @@ TABLE3_CASES = {
             (45.001, 3), (75.0, 3), (75.001, 4), (120.0, 4), (500.0, 4)],
     "B_fv": [(5000.0, 0), (6020.0, 0), (6075.0, 0), (6075.01, 1), (6150.0, 1), (6150.01, 2),
              (6250.0, 2), (6250.01, 3), (6400.0, 3), (6400.01, 4), (6600.0, 4), (9000.0, 4)],
-    "K_sv_omega_sv2": [(5.0, 0), (2.6, 0), (2.2, 0), (2.199, 1), (1.7, 1), (1.699, 2),
-                       (1.4, 2), (1.399, 3), (1.0, 3), (0.999, 4), (0.5, 4), (0.01, 4)],
+    # the valve on its static gain [m/V]: Table 3's K_sv omega^2 edges / 1e4
+    "K_sv": [(5e-4, 0), (2.6e-4, 0), (2.2e-4, 0), (2.199e-4, 1), (1.7e-4, 1), (1.699e-4, 2),
+             (1.4e-4, 2), (1.399e-4, 3), (1.0e-4, 3), (0.999e-4, 4), (0.5e-4, 4), (0.01e-4, 4)],
     "C_ip": [(0.0, 0), (3e-11, 0), (1e-10, 0), (1.001e-10, 4), (3e-10, 4), (1e-8, 4)],
     "C_ep": [(0.0, 0), (1e-12, 0), (1e-10, 0), (1.001e-10, 4), (3e-10, 4)],
 }
@@ -49,17 +51,27 @@ def test_table3_bands_and_clamping(name):
 
 
 def test_table3_file_equals_paper():
-    r = Ranges.default()
-    assert set(r.params) == {"K_sv_omega_sv2", "K_sv", "f_c", "B_fv", "C_ip", "C_ep"}
+    r = Ranges.paper()
+    assert set(r.params) == {"K_sv_omega_sv2", "f_c", "B_fv", "C_ip", "C_ep"}
     assert r.params["K_sv_omega_sv2"] == ParamRange(direction="falling", edges=(2.2, 1.7, 1.4, 1.0))
-    # ours: the static gain, K_sv omega^2's edges over the paper's omega_sv^2 = 1e4 (which its
-    # degradation leaves fixed, so the two grade the paper's rigs alike)
-    assert r.params["K_sv"] == ParamRange(direction="falling", edges=(2.2e-4, 1.7e-4, 1.4e-4, 1.0e-4))
-    assert np.allclose(np.array(r.params["K_sv"].edges) * 1e4, r.params["K_sv_omega_sv2"].edges, rtol=1e-12)
     assert r.params["f_c"] == ParamRange(direction="rising", edges=(10, 20, 45, 75))
     assert r.params["B_fv"] == ParamRange(direction="rising", edges=(6075, 6150, 6250, 6400))
     for n in ("C_ip", "C_ep"):
         assert r.params[n] == ParamRange(direction="rising", fault_threshold=1e-10)
+
+
+def test_default_ranges_are_table3_with_the_valve_on_its_static_gain():
+    paper, ours = Ranges.paper(), Ranges.default()
+    assert set(ours.params) == set(paper.params) - {"K_sv_omega_sv2"} | {"K_sv"}
+    assert all(ours.params[k] == paper.params[k] for k in paper.params if k != "K_sv_omega_sv2")
+    assert ours.params["K_sv"] == ParamRange(direction="falling", edges=(2.2e-4, 1.7e-4, 1.4e-4, 1.0e-4))
+    # on the paper's rigs (its degradation holds omega_sv at 100 rad/s) the two grade alike;
+    # exactly on a band edge (severity 0.2, 0.4, ...) the product K_sv omega^2 rounds either way
+    for s in np.linspace(0.0, 1.0, 401):
+        if np.min(np.abs(s - np.arange(6) * 0.2)) < 1e-9:
+            continue
+        true = degrade(float(s)).identified()
+        assert grade_of_values(true, ours) == grade_of_values(true, paper), s
 
 
 def test_cdw_is_ungraded_by_default():
@@ -80,12 +92,14 @@ def test_table4_groups_get_the_papers_grade(row, paper):
     k, cdw, fc, b, cip, cep = row
     v = {"K_sv_omega_sv2": k, "CdW_sqrt_rho": cdw * 1e-4, "f_c": fc, "B_fv": b,
          "C_ip": cip * 1e-11, "C_ep": cep * 1e-13}
+    assert grade_name(grade_of_values(v, Ranges.paper())) == paper
+    v["K_sv"] = v.pop("K_sv_omega_sv2") / 1e4  # the paper's omega_sv^2
     assert grade_name(grade_of_values(v)) == paper
 
 
 def test_fused_level_is_the_worst():
     assert grade_of_values({**TRUE, "f_c": 30.0}) == 2
-    assert grade_of_values({**TRUE, "f_c": 30.0, "K_sv_omega_sv2": 1.2}) == 3
+    assert grade_of_values({**TRUE, "f_c": 30.0, "K_sv": 1.2e-4}) == 3
     assert grade_of_values({**TRUE, "f_c": 30.0, "C_ep": 3e-10}) == 4
 
 
@@ -98,16 +112,16 @@ def test_grade_of_values_rejects_nonfinite():
 
 @pytest.mark.parametrize("name, edge, steps", [
     # (value, expected grade) after starting on the worse side of the edge; margins: f_c 0.4 N,
-    # K_sv 0.034, C_ip 2e-12, B_fv min(123, half of 75) = 37.5 N s/m
+    # K_sv 3.4e-6, C_ip 2e-12, B_fv min(123, half of 75) = 37.5 N s/m
     ("f_c", 20.0, [(19.7, 2), (20.3, 2), (19.5, 1), (20.3, 1), (19.7, 1), (20.5, 2)]),
-    ("K_sv_omega_sv2", 1.7, [(1.73, 2), (1.67, 2), (1.735, 1), (1.67, 1), (1.665, 2)]),
+    ("K_sv", 1.7e-4, [(1.73e-4, 2), (1.67e-4, 2), (1.735e-4, 1), (1.67e-4, 1), (1.665e-4, 2)]),
     ("C_ip", 1e-10, [(0.985e-10, 4), (0.979e-10, 0), (1.015e-10, 0), (1.021e-10, 4)]),
     ("B_fv", 6150.0, [(6120.0, 2), (6180.0, 2), (6110.0, 1), (6185.0, 1), (6190.0, 2),
                       (6100.0, 1)]),  # 6100 is past the middle of (6075, 6150]
 ])
 def test_hysteresis_no_flap_then_real_move(name, edge, steps):
     g = Grader()
-    worse = {"K_sv_omega_sv2": -1}.get(name, 1)
+    worse = {"K_sv": -1}.get(name, 1)
     start = one(name, edge * (1 + 0.005 * worse))
     seen = {g.update({**TRUE, name: edge * (1 + 0.005 * worse * (-1) ** i)}, ZERO, True)
             .param_levels[name] for i in range(40)}  # +-0.5 % around the edge
@@ -121,12 +135,12 @@ def test_margins_are_capped_at_half_a_band():
     m = dict(zip(a.names, a.margins))
     np.testing.assert_allclose(m["f_c"], [0.2, 0.4, 0.9, 1.5])
     np.testing.assert_allclose(m["B_fv"], [37.5, 37.5, 50.0, 75.0])
-    np.testing.assert_allclose(m["K_sv_omega_sv2"], [0.044, 0.034, 0.028, 0.02])
+    np.testing.assert_allclose(m["K_sv"], [4.4e-6, 3.4e-6, 2.8e-6, 2e-6])
     np.testing.assert_allclose(m["C_ip"], [2e-12] * 4)
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.sampled_from(["f_c", "B_fv", "K_sv_omega_sv2"]), st.integers(1, 3),
+@given(st.sampled_from(["f_c", "B_fv", "K_sv"]), st.integers(1, 3),
        st.floats(0.001, 0.499), st.booleans(), st.integers(-1, 4), st.floats(0.0, 0.9))
 def test_value_past_band_middle_is_graded_there(name, k, d, upper, held, margin):
     # the cap's promise: once a value is past the middle of inner band k, coming from the
@@ -165,7 +179,7 @@ def test_se_gating_f_c():
     assert r.param_levels["f_c"] == 0
     r = g.update({**TRUE, "f_c": 14.0}, {**se, "f_c": 4.0}, True)  # [6, 22]: three bands
     assert r.param_levels["f_c"] == -1
-    assert r.level == 0 and r.confidence == pytest.approx(5 / 6)
+    assert r.level == 0 and r.confidence == pytest.approx(4 / 5)
     assert g.band[g._batch.names.index("f_c")] == 0  # memory kept while not placed
 
 
@@ -233,19 +247,19 @@ def test_confidence_exact_values_is_one():
 def test_confidence_formula_against_scipy():
     # f_c 30 +- 1.5 (average, L = 2), K_sv 1.85 +- 0.05 (sub-health), B_fv 6100 +- 10 (sub);
     # each +-2 SE interval inside one band, so all three are placed
-    v = {**TRUE, "f_c": 30.0, "K_sv_omega_sv2": 1.85, "B_fv": 6100.0}
-    s = {**ZERO, "f_c": 1.5, "K_sv_omega_sv2": 0.05, "B_fv": 10.0}
+    v = {**TRUE, "f_c": 30.0, "K_sv": 1.85e-4, "B_fv": 6100.0}
+    s = {**ZERO, "f_c": 1.5, "K_sv": 0.05e-4, "B_fv": 10.0}
     r = Grader().update(v, s, True)
     assert r.level == 2
-    p_le2 = norm.cdf(45, 30, 1.5) * norm.sf(1.4, 1.85, 0.05) * norm.cdf(6250, 6100, 10)
-    p_le1 = norm.cdf(20, 30, 1.5) * norm.sf(1.7, 1.85, 0.05) * norm.cdf(6150, 6100, 10)
+    p_le2 = norm.cdf(45, 30, 1.5) * norm.sf(1.4e-4, 1.85e-4, 0.05e-4) * norm.cdf(6250, 6100, 10)
+    p_le1 = norm.cdf(20, 30, 1.5) * norm.sf(1.7e-4, 1.85e-4, 0.05e-4) * norm.cdf(6150, 6100, 10)
     assert r.confidence == pytest.approx(p_le2 - p_le1, rel=1e-12)
 
 
 def test_interval_straddling_an_edge_is_not_placed_when_another_parameter_is():
     # f_c 21 +- 1.5 straddles 20: ambiguous, must not decide the worst-of fusion
-    v = {**TRUE, "f_c": 21.0, "K_sv_omega_sv2": 1.85}
-    s = {**ZERO, "f_c": 1.5, "K_sv_omega_sv2": 0.05}
+    v = {**TRUE, "f_c": 21.0, "K_sv": 1.85e-4}
+    s = {**ZERO, "f_c": 1.5, "K_sv": 0.05e-4}
     r = Grader().update(v, s, True)
     assert r.param_levels["f_c"] == -1 and r.level == 1
 
@@ -253,10 +267,10 @@ def test_interval_straddling_an_edge_is_not_placed_when_another_parameter_is():
 def test_fallback_grades_the_most_precise_straddling_parameter():
     # every graded parameter straddles an edge: the one with the smallest SE relative to its
     # band's width (K_sv: 0.02 / 0.5) is graded at its value
-    v = {"f_c": 21.0, "K_sv_omega_sv2": 1.71, "B_fv": 6150.0, "C_ip": 3e-11, "C_ep": 0.0}
-    s = {"f_c": 1.5, "K_sv_omega_sv2": 0.02, "B_fv": 20.0, "C_ip": 1e-10, "C_ep": 1e-10}
+    v = {"f_c": 21.0, "K_sv": 1.71e-4, "B_fv": 6150.0, "C_ip": 3e-11, "C_ep": 0.0}
+    s = {"f_c": 1.5, "K_sv": 0.02e-4, "B_fv": 20.0, "C_ip": 1e-10, "C_ep": 1e-10}
     r = Grader().update(v, s, True)
-    assert r.level == 1 and r.param_levels["K_sv_omega_sv2"] == 1
+    assert r.level == 1 and r.param_levels["K_sv"] == 1
     assert r.param_levels["f_c"] == -1
 
 
@@ -277,7 +291,7 @@ def _random_stream(rng, n_rigs, n_steps):
     i = PARAM_NAMES.index
     vals[..., i("f_c")] = fc * (1 + rng.normal(0, 0.02, fc.shape))
     vals[..., i("B_fv")] = 6150.0 * (1 + rng.normal(0, 0.01, fc.shape))
-    vals[..., i("K_sv_omega_sv2")] = rng.uniform(0.3, 3.0, fc.shape)
+    vals[..., i("K_sv")] = rng.uniform(0.3e-4, 3.0e-4, fc.shape)
     vals[..., i("C_ip")] = 10 ** rng.uniform(-11, -9, fc.shape)
     se = np.abs(vals) * rng.uniform(0, 0.05, vals.shape)
     se[rng.random(se.shape) < 0.05] = np.inf
@@ -362,7 +376,7 @@ def test_not_json_raises(tmp_path):
 
 # --- properties ----------------------------------------------------------------------------
 
-GRADED = {"f_c": (0.0, 200.0), "B_fv": (5900.0, 6800.0), "K_sv_omega_sv2": (0.1, 3.0),
+GRADED = {"f_c": (0.0, 200.0), "B_fv": (5900.0, 6800.0), "K_sv": (0.1e-4, 3.0e-4),
           "C_ip": (0.0, 1e-9), "C_ep": (0.0, 1e-9)}
 
 

@@ -53,12 +53,12 @@ def test_a_valve_that_lost_gain_is_graded_when_the_monitor_joins_mid_run(midrun)
         assert se < 0.01 * p.K_sv
 
 
-def test_without_the_static_gain_the_lost_gain_goes_unseen(midrun):
-    """The counter-check: graded on K_sv omega^2 alone (Table 3), the same records miss the valve."""
+def test_graded_on_k_sv_omega2_as_printed_the_lost_gain_goes_unseen(midrun):
+    """The counter-check: graded by the paper's Table 3 as printed (K_sv omega^2), the same
+    records miss the worn valve. A statement of today's limit (the valve's dynamics are not
+    identified without excitation): if that is ever fixed, this test should change with it."""
     plants, runs = midrun
-    d = Ranges.default().model_dump()
-    del d["params"]["K_sv"]
-    fleet = _fleet(runs, Ranges.model_validate(d))
+    fleet = _fleet(runs, Ranges.paper())
     worn = [i for i, p in enumerate(plants) if p.K_sv < 1.4e-4]
     assert all(fleet.estimate(i).level < 3 for i in worn)
     assert all(fleet.estimate(i).param_grades.get("K_sv_omega_sv2", "unknown") == "unknown" for i in worn)

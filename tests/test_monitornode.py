@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hydromon.bus import free_tcp_endpoint, open_session
-from hydromon.contract import GRADES, Health, RigConfig, Sample, health_key
+from hydromon.contract import GRADES, PARAM_NAMES, Health, RigConfig, Sample, health_key
 from hydromon.fleetfile import FleetSpec, default_fleet
 from hydromon.monitornode import REJECT_REASONS, MonitorCore, RateLimitedLog, Rejected, parse_sample, run_monitor
 from hydromon.simnode import iter_blocks, run_sim
@@ -255,7 +255,7 @@ def test_health_payloads_hold_only_finite_numbers():
     assert first["status"] == "converging" and first["level"] is None and first["grade"] == "unknown"
     for _, p in health:
         Health.model_validate_json(p)  # allow_inf_nan=False: would fail on any NaN/inf
-    assert any(len(orjson.loads(p)["std_errors"]) < 11 for _, p in health)
+    assert any(len(orjson.loads(p)["std_errors"]) < len(PARAM_NAMES) for _, p in health)
 
 
 SAMPLE_VALUES = st.one_of(st.integers(-3, 10**20), st.floats(allow_nan=True, allow_infinity=True),
@@ -430,3 +430,7 @@ def test_a_rig_whose_x1_empties_a_chamber_is_warned_of_once_while_running():
     assert len(warnings) == 1 and core.fleet.x1_clamped(core.rigs["bad"].row) == 0
     core.process([cfg(0.0004)] + samples(40, 10))     # wrong again: warned again
     assert warnings == [("bad", X1_CLAMPED_WARNING)] * 2
+    core.process([cfg(0.0003)] + samples(50, 10))     # another wrong one: its own warning
+    assert warnings == [("bad", X1_CLAMPED_WARNING)] * 3
+    core.process(samples(0, 10))                      # the rig restarted (seq 0): afresh
+    assert warnings == [("bad", X1_CLAMPED_WARNING)] * 4

@@ -43,7 +43,7 @@ def comparison_table(cal, paper):
         ours = cal.ranges.params.get(name)
         ref = ours or paper.params[name]
         t.add_row(name, ref.direction, fmt(paper.params.get(name)),
-                  fmt(ours) if ours else "left out (labels overlap)")
+                  fmt(ours) if ours else "left out (labels overlap)" if name in cal.dropped else "not graded")
     return t
 
 
@@ -69,7 +69,7 @@ def run(args) -> int:
     out.print(f"{cal.n_used} of {args.runs} runs converged; x1-mean thresholds (mm): "
               + ", ".join(f"{1e3 * x:.2f}" for x in cal.thresholds)
               + f"; runs per label: {[int((cal.labels == j).sum()) for j in range(5)]}")
-    out.print(comparison_table(cal, Ranges.default()))
+    out.print(comparison_table(cal, Ranges.paper()))
     for msg in cal.dropped.values():
         out.print(f"left out: {msg}")
     if cal.overlaps:

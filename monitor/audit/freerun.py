@@ -4,7 +4,7 @@ The identified parameters (bus names, ``hydromon.contract.PARAM_NAMES``) become 
 ``plant_sim`` plant: m, B = B_fv with f_v = 0, f_c, K_t, beta_e = 1/inv_beta_e,
 C_d W/sqrt(rho) (C_d = 0.6, rho = 880 chosen, W solved), C_ip, C_ep,
 omega_sv = sqrt(omega_sv2), zeta_sv = two_zeta_omega / (2 omega_sv),
-K_sv = K_sv_omega_sv2 / omega_sv2. A value outside the physical domain (an unidentifiable
+K_sv (K_sv_omega_sv2 / omega_sv2 where it is missing). A value outside the physical domain (an unidentifiable
 parameter, e.g. the mass of a piston that barely moves, estimated <= 0) takes the fallback
 model's value when that one is valid, else the domain's edge (listed in ``FreeRun.clamped``). The run starts from the measured first sample and is
 driven by the measured ug (linearly interpolated inside sample periods); nothing measured
@@ -62,7 +62,10 @@ def plant_from_params(params: dict, fallback: dict | None = None) -> tuple[Plant
         C_ep=pos("C_ep", params["C_ep"], 0.0),
         omega_sv=w,
         zeta_sv=pos("two_zeta_omega", params["two_zeta_omega"], 1e-3 * w) / (2.0 * w),
-        K_sv=pos("K_sv_omega_sv2", params["K_sv_omega_sv2"], 1e-9) / w2,
+        # the static gain where it was read out on its own (it stays right without excitation
+        # at the valve's bandwidth, where K_sv omega^2 and omega^2 are off by the same factor)
+        K_sv=pos("K_sv", params["K_sv"], 1e-13) if "K_sv" in params
+        else pos("K_sv_omega_sv2", params["K_sv_omega_sv2"], 1e-9) / w2,
     )
     return p, clamped
 
