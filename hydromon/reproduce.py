@@ -145,7 +145,7 @@ def _table3(noise: str, runs: int, config: RigConfig):
         ours, dropped = cal.ranges, cal.dropped
         source = f"calibration ({runs} runs, noise {noise}; monitor.calibrate)"
     else:
-        ours = paper
+        ours = Ranges.default()
         source = "our default ranges (the paper's Table 3, the valve on K_sv; no calibration run)"
     names = list(paper.params) + [k for k in ours.params if k not in paper.params]
     rows = []
@@ -275,7 +275,8 @@ def render(rep: Reproduction, console=None) -> None:
         t.add_column(c, justify="left" if c in ("parameter", "direction") else "right")
     for r in rep.table3:
         d = (r["ours"] or r["paper"])["direction"]
-        t.add_row(r["name"], d, _fmt_range(r["paper"]), _fmt_range(r["ours"]) if r["ours"] else "not separable")
+        ours = _fmt_range(r["ours"]) if r["ours"] else "not separable" if "note" in r else "not graded"
+        t.add_row(r["name"], d, _fmt_range(r["paper"]) if r["paper"] else "-", ours)
     console.print(t)
     for r in rep.table3:
         if "note" in r:

@@ -168,6 +168,10 @@ def test_reproduce_with_noise_reports_mean_errors_over_seeds():
     doc = to_json(reproduce(noise="stress", seeds=2, calibration_runs=0))
     rows = {r["name"]: r for r in doc["table2"]}
     assert doc["seeds"] == 2 and "default ranges" in doc["table3_source"]
+    # without a calibration, "ours" is the default ranges: the valve on K_sv, not K_sv omega^2
+    t3 = {r["name"]: r for r in doc["table3"]}
+    assert t3["K_sv"]["paper"] is None and t3["K_sv"]["ours"]["edges"] == [2.2e-4, 1.7e-4, 1.4e-4, 1.0e-4]
+    assert t3["K_sv_omega_sv2"]["ours"] is None and t3["K_sv_omega_sv2"]["paper"]["edges"] == [2.2, 1.7, 1.4, 1.0]
     # stress noise: the paper's recipe is biased on the valve (about -40 %), ours is not
     assert rows["omega_sv2"]["paper_recipe_mean_abs_rel_err"] > 0.25
     assert rows["omega_sv2"]["mean_abs_rel_err"] < 0.02
