@@ -16,8 +16,8 @@ the parameter ranges of every label. We do the same on simulated rigs:
    37.9, 35.3, 33.0, 15.6 mm; the last is wide because the fault band's leakage stops the
    piston (x1 mean 29.5 mm at s = 0.79, 1.8 mm at s = 0.81).
 3. **Labels.** label = number of thresholds the run's x1 mean is below (0 health .. 4 fault).
-4. **Ranges.** For each graded parameter (those of the template ranges, default the
-   paper's Table 3) the converged runs of each label give [min, max]. The edge between
+4. **Ranges.** For each graded parameter (those of the template ranges, default
+   ``Ranges.default()``: Table 3 with the valve on K_sv) the converged runs of each label give [min, max]. The edge between
    labels j and j+1 is the midpoint of the gap between max_j and min_{j+1} (in the
    worsening direction, which is read off the data: the label-4 median against the
    label-0 median); where the two ranges overlap (noise), the midpoint of the two labels'
@@ -148,7 +148,7 @@ def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_ED
     ----------
     results : RunResults
     template : Ranges
-        Which parameters are graded and which are two-level (default: Table 3).
+        Which parameters are graded and which are two-level (default: ``Ranges.default()``).
     edges : the four severity band edges that place the x1 thresholds.
     strict : bool
         True: a parameter whose edges come out non-monotone is a ValueError. False: it is

@@ -173,6 +173,15 @@ def _valve_physical(th: np.ndarray, h: float, out: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
+def _valve_se(var: float) -> float:
+    """SE from a quadratic form of the valve IV's symmetrised P: the IV's P is not a covariance
+    and, symmetrised, can be indefinite (seen on records that start mid-run with steps in ug:
+    an eigenvalue of -576). A form <= 0 then says nothing: unknown (inf), not 0, which claimed
+    an exact estimate (omega^2 +241 % off with SE 0 on one mid-run random rig)."""
+    return math.sqrt(var) if var > 0.0 else np.inf
+
+
+@njit(cache=True, error_model="numpy")
 def _static_gain(th: np.ndarray, P: np.ndarray, f: float) -> tuple[float, float]:
     """K_sv [m/V] = X5_NOM (b0 + b1 + b2) / (1 + a1 + a2) and its SE by the (exact) gradient,
     with f = sigma^2 kappa (inf: SE inf). NaN/inf when the ARX has no DC gain."""
@@ -189,7 +198,7 @@ def _static_gain(th: np.ndarray, P: np.ndarray, f: float) -> tuple[float, float]
     for a in range(5):
         for b in range(5):
             acc += g[a] * 0.5 * (P[a, b] + P[b, a]) * g[b]
-    return k, math.sqrt(max(acc * f, 0.0))
+    return k, _valve_se(acc * f)
 
 
 @njit(cache=True, error_model="numpy")
@@ -266,4 +275,4 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
                 for a in range(5):
                     for b in range(5):
                         acc += J[i, a] * 0.5 * (P[a, b] + P[b, a]) * J[i, b]
-                se[8 + i] = math.sqrt(max(acc * f, 0.0))
+                se[8 + i] = _valve_se(acc * f)

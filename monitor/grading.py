@@ -1,4 +1,4 @@
-"""Health grading: parameter ranges (paper Table 3), SE gating, hysteresis and fusion.
+"""Health grading: parameter ranges (monitor.ranges), SE gating, hysteresis and fusion.
 
 Grades are levels 0 health, 1 sub-health, 2 average, 3 deterioration, 4 fault; -1 is unknown.
 
@@ -252,7 +252,7 @@ class BatchGrader:
     n_rigs : int
         Number of rigs.
     ranges : Ranges, optional
-        Health ranges; Table 3 by default.
+        Health ranges; ``Ranges.default()`` (Table 3, the valve on K_sv) by default.
     z : float
         Gating half-width in standard errors [-].
     margin : float

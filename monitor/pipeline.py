@@ -110,7 +110,7 @@ class Fleet:
     options : IdentOptions
         Identifier hyperparameters (shared).
     ranges : Ranges
-        Health ranges (default: the paper's Table 3).
+        Health ranges (default: ``Ranges.default()``, Table 3 with the valve on K_sv).
     sample_rate : float
         Sample rate of every rig [Hz].
     eval_every : int

@@ -118,6 +118,15 @@ class Ranges(BaseModel):
         return cls.load(DEFAULT_RANGES_PATH)
 
     @classmethod
+    def resolve(cls, spec: str | Path) -> Ranges:
+        """``"paper"`` (:meth:`paper`), ``"default"`` (:meth:`default`) or a ranges JSON file."""
+        if str(spec) == "paper":
+            return cls.paper()
+        if str(spec) == "default":
+            return cls.default()
+        return cls.load(spec)
+
+    @classmethod
     def paper(cls) -> Ranges:
         """The paper's Table 3 as printed (``monitor/data/table3.json``)."""
         return cls.load(PAPER_TABLE3_PATH)

@@ -308,3 +308,27 @@ def test_plots_into_a_file_is_a_clear_error_after_the_result(g4_csv, tmp_path, c
     captured = capsys.readouterr()
     assert json.loads(captured.out)["grade"] == "average"  # the evaluation is not lost
     assert "plots directory" in captured.err
+
+
+def test_cli_ranges_choose_what_grades_the_valve(g4_csv, capsys, tmp_path):
+    from monitor.ranges import Ranges
+
+    grades = {}
+    for spec in ("default", "paper"):
+        assert main(["evaluate", str(g4_csv), "--ranges", spec]) == 0
+        grades[spec] = capsys.readouterr().out
+    # the table's grade column: K_sv graded by default, K_sv omega^2 by Table 3 as printed
+    def grade(out, k):  # the grade cell of parameter k's row in the rich table
+        for line in out.splitlines():
+            cells = [c.strip() for c in line.split("\u2502")]
+            if len(cells) > 2 and cells[1] == k:
+                return cells[-2]
+        raise AssertionError(f"no row {k}")
+
+    assert grade(grades["default"], "K_sv") == "average"  # Table 4 group 4: K_sv omega^2 1.6
+    assert grade(grades["default"], "K_sv_omega_sv2") == ""
+    assert grade(grades["paper"], "K_sv_omega_sv2") == "average" and grade(grades["paper"], "K_sv") == ""
+    assert Ranges.resolve("paper") == Ranges.paper() and Ranges.resolve("default") == Ranges.default()
+    with pytest.raises(ValueError, match="bad ranges file"):
+        (tmp_path / "r.json").write_text("{}")
+        Ranges.resolve(tmp_path / "r.json")

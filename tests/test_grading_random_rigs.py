@@ -1,4 +1,4 @@
-"""Issue 2 acceptance: seeded random rigs graded as their true parameters grade under Table 3."""
+"""Issue 2 acceptance: seeded random rigs graded as their true parameters grade under the default ranges."""
 
 import numpy as np
 

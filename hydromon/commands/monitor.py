@@ -22,6 +22,8 @@ def add_arguments(parser) -> None:
                              "(shard a plant over several monitors; default all)")
     parser.add_argument("--eval-every", type=int, default=10, metavar="N",
                         help="a health message every N samples of a rig (default 10)")
+    parser.add_argument("--ranges", default=None, metavar="FILE",
+                        help='health ranges: a JSON file, or "paper" for Table 3 as printed (grades K_sv omega^2), "default" (the default: Table 3 with the valve on its static gain K_sv)')
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads for the estimators when many samples arrive at once (rigs split "
                              "between them; same numbers for any N; default 1)")
@@ -35,8 +37,11 @@ def run(args) -> int:
         raise ValueError(f"--duration {args.duration} must be > 0 s")
     if args.threads < 1:
         raise ValueError(f"--threads {args.threads} must be >= 1")
+    from monitor.ranges import Ranges
+
+    ranges = Ranges.resolve(args.ranges) if args.ranges else None  # a bad file fails here, before the bus
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
-                       on_warning=log_rig_warning, threads=args.threads)
+                       on_warning=log_rig_warning, threads=args.threads, ranges=ranges)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
