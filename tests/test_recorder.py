@@ -181,6 +181,18 @@ def _record_process(out, ep, log):
         stdout=log, stderr=log, env={**os.environ, "PYTHONUNBUFFERED": "1"})
 
 
+def _wait_subscribed(pub, proc, log_path):
+    """Wait for the recorder process's subscription; fail at once if it exits, and with its
+    log either way (one CI run timed out here after 45 s with nothing to go on)."""
+    def alive():
+        if proc.poll() is not None:
+            raise AssertionError(f"the recorder exited ({proc.returncode}): {log_path.read_text()[-2000:]}")
+    try:
+        wait_for(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe", alive=alive)
+    except AssertionError as exc:
+        raise AssertionError(f"{exc}; recorder log: {log_path.read_text()[-2000:]!r}") from None
+
+
 @pytest.mark.network
 @pytest.mark.timeout(90)
 def test_sigkilled_recorder_loses_at_most_its_last_second(tmp_path):
@@ -191,7 +203,7 @@ def test_sigkilled_recorder_loses_at_most_its_last_second(tmp_path):
         try:
             with open_session("peer", connect=[ep]) as session:
                 pub = session.declare_publisher(sample_key("k1"), congestion_control=BLOCK)
-                wait_for(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe")
+                _wait_subscribed(pub, proc, tmp_path / "record.log")
                 sent_ns = []
                 start = time.monotonic()
                 i = 0
@@ -236,7 +248,7 @@ def test_sigterm_stops_the_recorder_cleanly_with_a_complete_file(tmp_path):
         try:
             with open_session("peer", connect=[ep]) as session:
                 pub = session.declare_publisher(sample_key("k2"), congestion_control=BLOCK)
-                wait_for(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe")
+                _wait_subscribed(pub, proc, tmp_path / "record.log")
                 for i in range(50):
                     pub.put(sample_bytes(i, i * 0.01))
                 # the live file is flushed within the flush interval: all 50 become readable
