@@ -293,6 +293,13 @@ def render(ev: Evaluation, console=None) -> None:
             row += [f"{ref.params[k]:.5g}", f"{ref.std_errors[k]:.3g}"] if k in REFINED else ["", ""]
         t.add_row(*row, PARAM_UNITS[k], grades.get(k, ""))
     console.print(t)
+    graded = ev.ranges.params if ev.ranges is not None else {}
+    if "K_sv" in graded and "K_sv_omega_sv2" not in graded:
+        w2, s = a.params["omega_sv2"], a.std_errors["omega_sv2"]
+        how = (f"omega^2 +-{100 * s / abs(w2):.2g} %" if math.isfinite(s) and w2 else "omega^2 without an SE")
+        console.print(f"[dim]the valve is graded on its static gain K_sv ({how}; K_sv omega^2 needs the valve's "
+                      "dynamics excited, which a record that starts mid-run on a smooth command lacks); "
+                      "--ranges paper grades K_sv omega^2 as Table 3 prints it[/dim]")
     if r.restarts or r.rejected:
         console.print(f"[yellow]{len(r.restarts)} gap(s), {r.missing} sample(s) missing, {r.rejected} invalid "
                       "sample(s) skipped: the filters restarted after each gap, the estimates carried on[/yellow]")
