@@ -139,6 +139,12 @@ def test_cli_direct_replay_prints_the_health_jsonl(tmp_path, capsys):
     assert main(["replay", str(mcap), "--direct", "--out", str(out)]) == 0
     assert out.read_bytes() == jsonl.read_bytes(), REGENERATE
     assert "table4-g4: average" in capsys.readouterr().err
+    # the live monitor's ranges given explicitly: the same bytes; other ranges: other grades
+    assert main(["replay", str(mcap), "--direct", "--out", str(out), "--ranges", "default"]) == 0
+    assert out.read_bytes() == jsonl.read_bytes()
+    assert main(["replay", str(mcap), "--direct", "--out", str(out), "--ranges", "paper"]) == 0
+    last = orjson.loads(out.read_bytes().splitlines()[-1])
+    assert "K_sv_omega_sv2" in last["health"]["param_grades"] and "K_sv" not in last["health"]["param_grades"]
 
 
 @pytest.mark.network

@@ -33,6 +33,9 @@ def add_arguments(parser) -> None:
                         help="no bus: run the monitor in-process over the recording as fast as possible and "
                         "print the health sequence as JSON lines (or write it to --out)")
     parser.add_argument("--out", metavar="FILE", help="with --direct: write the health JSON lines here")
+    parser.add_argument("--ranges", default=None, metavar="FILE",
+                        help="with --direct: the health ranges, as `hydromon monitor --ranges` (paper, default or "
+                             "a JSON file); give the live monitor's to get its health byte for byte")
     add_bus_arguments(parser)
 
 
@@ -40,9 +43,12 @@ def _direct(args) -> int:
     from hydromon.monitornode import RateLimitedLog, MonitorCore
     from hydromon.replay import health_jsonl, replay_direct
 
+    from monitor.ranges import Ranges
+
     if args.loop:
         raise ValueError("--loop has no meaning with --direct")
-    core = MonitorCore(args.namespace, on_reject=RateLimitedLog())
+    ranges = Ranges.resolve(args.ranges) if args.ranges else None
+    core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges)
     health, core = replay_direct(args.file, keys=args.keys, start=args.start, duration=args.duration,
                                  namespace=args.namespace, core=core)
     if args.out:
@@ -73,6 +79,8 @@ def run(args) -> int:
         return _direct(args)
     if args.out:
         raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
+    if args.ranges:
+        raise ValueError("--ranges goes with --direct (a bus replay publishes samples; the monitor grades them)")
     from hydromon.replay import recording_span, replay_bus
 
     first, last, _ = recording_span(args.file)  # a bad file fails here, before the session opens
