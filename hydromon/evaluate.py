@@ -296,10 +296,11 @@ def render(ev: Evaluation, console=None) -> None:
     graded = ev.ranges.params if ev.ranges is not None else {}
     if "K_sv" in graded and "K_sv_omega_sv2" not in graded:
         w2, s = a.params["omega_sv2"], a.std_errors["omega_sv2"]
-        how = (f"omega^2 +-{100 * s / abs(w2):.2g} %" if math.isfinite(s) and w2 else "omega^2 without an SE")
-        console.print(f"[dim]the valve is graded on its static gain K_sv ({how}; K_sv omega^2 needs the valve's "
-                      "dynamics excited, which a record that starts mid-run on a smooth command lacks); "
-                      "--ranges paper grades K_sv omega^2 as Table 3 prints it[/dim]")
+        how = (f"here omega^2 +-{100 * s / abs(w2):.2g} %" if math.isfinite(s) and math.isfinite(w2) and w2
+               else "here omega^2 has no SE")
+        console.print(f"[dim]the valve is graded on its static gain K_sv; K_sv omega^2 is reported, not graded: it "
+                      f"needs the valve's dynamics excited, which a record that starts mid-run on a smooth command "
+                      f"lacks ({how}); --ranges paper grades it as Table 3 prints it[/dim]")
     if r.restarts or r.rejected:
         console.print(f"[yellow]{len(r.restarts)} gap(s), {r.missing} sample(s) missing, {r.rejected} invalid "
                       "sample(s) skipped: the filters restarted after each gap, the estimates carried on[/yellow]")

@@ -106,9 +106,14 @@ class Ranges(BaseModel):
 
     @classmethod
     def load(cls, path: str | Path) -> Ranges:
-        """Read a ranges JSON file; ValueError naming the file and the bad entry."""
+        """Read a ranges JSON file; ValueError naming the file and what is wrong (unreadable,
+        not UTF-8, or the bad entry)."""
         try:
-            return cls.model_validate_json(Path(path).read_text())
+            text = Path(path).read_text()
+        except (OSError, UnicodeDecodeError) as e:
+            raise ValueError(f"ranges file {str(path)!r}: {e}") from None
+        try:
+            return cls.model_validate_json(text)
         except ValidationError as e:
             raise ValueError(f"bad ranges file {str(path)!r}: {e}") from None
 
@@ -119,7 +124,8 @@ class Ranges(BaseModel):
 
     @classmethod
     def resolve(cls, spec: str | Path) -> Ranges:
-        """``"paper"`` (:meth:`paper`), ``"default"`` (:meth:`default`) or a ranges JSON file."""
+        """``"paper"`` (:meth:`paper`), ``"default"`` (:meth:`default`) or a ranges JSON file
+        (a file of one of those names: ``./paper``)."""
         if str(spec) == "paper":
             return cls.paper()
         if str(spec) == "default":

@@ -329,6 +329,11 @@ def test_cli_ranges_choose_what_grades_the_valve(g4_csv, capsys, tmp_path):
     assert grade(grades["default"], "K_sv_omega_sv2") == ""
     assert grade(grades["paper"], "K_sv_omega_sv2") == "average" and grade(grades["paper"], "K_sv") == ""
     assert Ranges.resolve("paper") == Ranges.paper() and Ranges.resolve("default") == Ranges.default()
+    (tmp_path / "r.json").write_text("{}")
+    (tmp_path / "latin1.json").write_bytes(b"\xe9")
     with pytest.raises(ValueError, match="bad ranges file"):
-        (tmp_path / "r.json").write_text("{}")
         Ranges.resolve(tmp_path / "r.json")
+    # unreadable ranges (missing, a directory, not UTF-8): a clear error naming it, exit 2
+    for bad in (tmp_path / "missing.json", tmp_path, tmp_path / "latin1.json"):
+        assert main(["evaluate", str(g4_csv), "--ranges", str(bad)]) == 2
+        assert f"ranges file '{bad}'" in capsys.readouterr().err

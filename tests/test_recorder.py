@@ -186,11 +186,13 @@ def _wait_subscribed(pub, proc, log_path):
     log either way (one CI run timed out here after 45 s with nothing to go on)."""
     def alive():
         if proc.poll() is not None:
-            raise AssertionError(f"the recorder exited ({proc.returncode}): {log_path.read_text()[-2000:]}")
+            raise AssertionError(f"the recorder exited ({proc.returncode}); its log: {log_path.read_text()[-2000:]!r}")
     try:
         wait_for(lambda: pub.matching_status.matching, 45, "the recorder process to subscribe", alive=alive)
     except AssertionError as exc:
-        raise AssertionError(f"{exc}; recorder log: {log_path.read_text()[-2000:]!r}") from None
+        if "its log" in str(exc):
+            raise
+        raise AssertionError(f"{exc}; the recorder's log: {log_path.read_text()[-2000:]!r}") from None
 
 
 @pytest.mark.network

@@ -33,7 +33,7 @@ def add_arguments(parser) -> None:
                         help="no bus: run the monitor in-process over the recording as fast as possible and "
                         "print the health sequence as JSON lines (or write it to --out)")
     parser.add_argument("--out", metavar="FILE", help="with --direct: write the health JSON lines here")
-    parser.add_argument("--ranges", default=None, metavar="FILE",
+    parser.add_argument("--ranges", default=None, metavar="paper|default|FILE",
                         help="with --direct: the health ranges, as `hydromon monitor --ranges` (paper, default or "
                              "a JSON file); give the live monitor's to get its health byte for byte")
     add_bus_arguments(parser)
@@ -47,7 +47,7 @@ def _direct(args) -> int:
 
     if args.loop:
         raise ValueError("--loop has no meaning with --direct")
-    ranges = Ranges.resolve(args.ranges) if args.ranges else None
+    ranges = Ranges.resolve(args.ranges) if args.ranges is not None else None
     core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges)
     health, core = replay_direct(args.file, keys=args.keys, start=args.start, duration=args.duration,
                                  namespace=args.namespace, core=core)
@@ -79,7 +79,7 @@ def run(args) -> int:
         return _direct(args)
     if args.out:
         raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
-    if args.ranges:
+    if args.ranges is not None:
         raise ValueError("--ranges goes with --direct (a bus replay publishes samples; the monitor grades them)")
     from hydromon.replay import recording_span, replay_bus
 
