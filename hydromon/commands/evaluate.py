@@ -5,19 +5,18 @@ from __future__ import annotations
 import json
 import sys
 
+from hydromon.commands._ranges import add_ranges_argument, ranges_from_args
+
 NAME = "evaluate"
 HELP = "grade one recording (.mcap, or .csv with columns t,ug,x1,x3,x4,x5 in SI units)"
 
-
-RANGES_HELP = ('health ranges: "default" (the default: Table 3 with the valve on its static gain K_sv), '
-               '"paper" (Table 3 as printed: grades K_sv omega^2) or a JSON file (./paper for a file of that name)')
 
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE", help="recording: .csv (t,ug,x1,x3,x4,x5, SI) or .mcap")
     parser.add_argument("--json", action="store_true",
                         help='print {"grade","level","confidence","status","params","std_errors"} on stdout')
     parser.add_argument("--rig", metavar="ID", help="which rig of a multi-rig MCAP recording")
-    parser.add_argument("--ranges", metavar="paper|default|FILE", help=RANGES_HELP)
+    add_ranges_argument(parser)
     parser.add_argument("--refine", action="store_true",
                         help="also fit the force and chamber parameters to the whole record by prediction error "
                              "(monitor/refine.py: B + f_v at realistic sensor noise ~0.8 %% instead of ~4 %%; "
@@ -30,9 +29,8 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from hydromon.evaluate import evaluate, load_recording, render, to_json
-    from monitor.grading import Ranges
 
-    ranges = Ranges.resolve(args.ranges) if args.ranges is not None else None
+    ranges = ranges_from_args(args)
     rec = load_recording(args.file, rig=args.rig)
     print(f"hydromon evaluate: {rec.source}: rig {rec.rig}, {len(rec.samples)} samples", file=sys.stderr)
     if args.refine:

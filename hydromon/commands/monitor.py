@@ -7,13 +7,11 @@ import sys
 import threading
 
 from hydromon.bus import add_bus_arguments, session_from_args
+from hydromon.commands._ranges import add_ranges_argument, ranges_from_args
 
 NAME = "monitor"
 HELP = "grade every rig on <namespace>/rig/*/sample and publish <namespace>/rig/<id>/health"
 
-
-RANGES_HELP = ('health ranges: "default" (the default: Table 3 with the valve on its static gain K_sv), '
-               '"paper" (Table 3 as printed: grades K_sv omega^2) or a JSON file (./paper for a file of that name)')
 
 def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=None, metavar="S",
@@ -25,8 +23,7 @@ def add_arguments(parser) -> None:
                              "(shard a plant over several monitors; default all)")
     parser.add_argument("--eval-every", type=int, default=10, metavar="N",
                         help="a health message every N samples of a rig (default 10)")
-    parser.add_argument("--ranges", default=None, metavar="paper|default|FILE",
-                        help=RANGES_HELP)
+    add_ranges_argument(parser)
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads for the estimators when many samples arrive at once (rigs split "
                              "between them; same numbers for any N; default 1)")
@@ -40,9 +37,7 @@ def run(args) -> int:
         raise ValueError(f"--duration {args.duration} must be > 0 s")
     if args.threads < 1:
         raise ValueError(f"--threads {args.threads} must be >= 1")
-    from monitor.ranges import Ranges
-
-    ranges = Ranges.resolve(args.ranges) if args.ranges is not None else None  # a bad file fails here, before the bus
+    ranges = ranges_from_args(args)  # a bad file fails here, before the bus
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
                        on_warning=log_rig_warning, threads=args.threads, ranges=ranges)
     stop = threading.Event()

@@ -7,6 +7,7 @@ import sys
 import threading
 
 from hydromon.bus import add_bus_arguments, session_from_args
+from hydromon.commands._ranges import RANGES_HELP, add_ranges_argument, ranges_from_args
 
 NAME = "replay"
 HELP = "publish an MCAP recording on the bus (paced), or grade it in-process with --direct"
@@ -33,9 +34,8 @@ def add_arguments(parser) -> None:
                         help="no bus: run the monitor in-process over the recording as fast as possible and "
                         "print the health sequence as JSON lines (or write it to --out)")
     parser.add_argument("--out", metavar="FILE", help="with --direct: write the health JSON lines here")
-    parser.add_argument("--ranges", default=None, metavar="paper|default|FILE",
-                        help="with --direct: the health ranges, as `hydromon monitor --ranges` (paper, default or "
-                             "a JSON file); give the live monitor's to get its health byte for byte")
+    add_ranges_argument(parser, f"with --direct: {RANGES_HELP}; give the live monitor's to get its health "
+                                "byte for byte")
     add_bus_arguments(parser)
 
 
@@ -43,12 +43,9 @@ def _direct(args) -> int:
     from hydromon.monitornode import RateLimitedLog, MonitorCore
     from hydromon.replay import health_jsonl, replay_direct
 
-    from monitor.ranges import Ranges
-
     if args.loop:
         raise ValueError("--loop has no meaning with --direct")
-    ranges = Ranges.resolve(args.ranges) if args.ranges is not None else None
-    core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges)
+    core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges_from_args(args))
     health, core = replay_direct(args.file, keys=args.keys, start=args.start, duration=args.duration,
                                  namespace=args.namespace, core=core)
     if args.out:
