@@ -140,7 +140,6 @@ class MonitorCore:
         self.fleet = Fleet(sample_rate=sample_rate, eval_every=eval_every, stagger=stagger, **fleet_kw)
         self.on_reject = on_reject
         self.on_warning = on_warning
-        self._clamp_warned = np.zeros(0, dtype=np.bool_)  # per row: warned of its clamped x1
         self.counters = MonitorCounters()
         self.rigs: dict[str, _Rig] = {}
         self.configs: dict[str, RigConfig] = {}   # latest valid config per rig id
@@ -156,6 +155,7 @@ class MonitorCore:
         self._n = np.zeros(16, dtype=np.int64)         # samples since the estimates (re)started
         self._gap = np.full(16, -1, dtype=np.int64)    # samples after the last gap; -1 = none pending
         self._bad = np.zeros(16, dtype=np.bool_)       # a sample-key message rejected since the last health
+        self._clamp_warned = np.zeros(16, dtype=np.bool_)  # warned of its x1 beyond a chamber's end
         self._clear()
 
     # -- batch of accepted samples --------------------------------------------------------
@@ -191,19 +191,15 @@ class MonitorCore:
 
     def _warn_clamped(self) -> None:
         clamped = self.fleet.x1_clamped_all() > 0
-        if len(self._clamp_warned) < len(clamped):
-            grown = np.zeros(len(clamped), dtype=np.bool_)
-            grown[:len(self._clamp_warned)] = self._clamp_warned
-            self._clamp_warned = grown
-        new = clamped & ~self._clamp_warned
-        self._clamp_warned |= new
+        warned = self._clamp_warned[:len(clamped)]
+        new = clamped & ~warned
+        warned |= new
         for r in np.flatnonzero(new).tolist():
             self.on_warning(self.fleet.ids[r], X1_CLAMPED_WARNING)
 
     def _restarted(self, r: int) -> None:
         """Row r's estimates restarted (config change, seq restart): warn of it afresh."""
-        if r < len(self._clamp_warned):
-            self._clamp_warned[r] = False
+        self._clamp_warned[r] = False
 
     def _health(self, ev, t: np.ndarray, out: list) -> None:
         """Health payloads of a batch's evaluations (``hydromon.health_json``)."""
@@ -240,6 +236,7 @@ class MonitorCore:
                 self._n = np.concatenate([self._n, np.zeros(grow, dtype=np.int64)])
                 self._gap = np.concatenate([self._gap, np.full(grow, -1, dtype=np.int64)])
                 self._bad = np.concatenate([self._bad, np.zeros(grow, dtype=np.bool_)])
+                self._clamp_warned = np.concatenate([self._clamp_warned, np.zeros(grow, dtype=np.bool_)])
             rig = self.rigs[rig_id] = _Rig(row, config)
             self._health_keys.append(health_key(rig_id, self.namespace))
         return rig
