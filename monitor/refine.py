@@ -174,15 +174,14 @@ class Refinement:
     noise: dict[str, float] = field(default_factory=dict)
 
 
-
-def _with_static_gain(th: np.ndarray, cov: np.ndarray | None):
-    """Parameters by PARAM_NAMES from the fitted th (FIT_NAMES, SI): K_sv = K_sv omega^2 /
-    omega^2 [m/V] appended. With cov [SI] also the static gain's SE (delta method)."""
+def _with_static_gain(th: np.ndarray, cov: np.ndarray | None) -> tuple[dict[str, float], float]:
+    """Parameters by PARAM_NAMES from the fitted th (FIT_NAMES, SI), K_sv = K_sv omega^2 /
+    omega^2 [m/V] appended, and K_sv's SE by the delta method from cov [SI] (inf without)."""
     j_w2, j_kw2 = FIT_NAMES.index("omega_sv2"), FIT_NAMES.index("K_sv_omega_sv2")
     k = float(th[j_kw2] / th[j_w2]) if th[j_w2] != 0 else math.nan
     params = dict(zip(PARAM_NAMES, (*map(float, th), k)))
     if cov is None:
-        return params
+        return params, math.inf
     g = np.zeros(th.size)
     g[j_kw2], g[j_w2] = 1.0 / th[j_w2], -k / th[j_w2]
     return params, float(math.sqrt(max(g @ cov @ g, 0.0)))
@@ -230,7 +229,7 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
         return np.where(np.isfinite(w), w, 1e6)
 
     noise_d = dict(zip(("x1", "x3", "x4", "x5"), map(float, sig)))
-    fail = Refinement(_with_static_gain(th0, None), dict.fromkeys(PARAM_NAMES, math.inf), False, "", 0, noise_d)
+    fail = Refinement(_with_static_gain(th0, None)[0], dict.fromkeys(PARAM_NAMES, math.inf), False, "", 0, noise_d)
     try:
         res = least_squares(cost, th0 / NOMINAL, method="lm", x_scale="jac", max_nfev=max_evaluations)
     except (ValueError, np.linalg.LinAlgError) as exc:

@@ -173,9 +173,9 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
 def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, refine: int = 3) -> dict:
     """Step up the rig count until a step loses a sample or misses p99 < 50 ms, then bisect
     ``refine`` times between the last passing and the first failing count (to a multiple of
-    10; three halvings: 1000 passing and 2000 failing are resolved to 125 rigs, which two left
-    at 250: session 6's run stopped at "1250 failed" with 1000 its figure); the figure is the largest passing step (``rigs`` None with a ``reason`` if none passes
-    or the monitor node is missing)."""
+    10; three halvings resolve 1000 passing and 2000 failing to 125 rigs, two left 250:
+    session 6's run stopped at "1250 failed" with 1000 its figure); the figure is the largest
+    passing step (``rigs`` None with a ``reason`` if none passes or the monitor node is missing)."""
     try:
         import hydromon.monitornode  # noqa: F401
     except ImportError as exc:
