@@ -20,7 +20,8 @@ import numpy as np
 
 from hydromon.contract import PARAM_NAMES, SAMPLE_LIMITS
 from monitor.grading import Ranges
-from monitor.identify import V_MIN, IdentOptions
+from monitor.ident_options import IdentOptions
+from monitor.identify import V_MIN
 from monitor.pipeline import Assessment, Events, Pipeline
 from monitor.refine import REFINED, Refinement, refine
 from plant_sim.params import RigConfig

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from hydromon.contract import GRADES, PARAM_NAMES
-from monitor.identify import gated
+from monitor.outlier_gate import gated
 
 __all__ = ["PlotSummary", "plot_evaluation"]
 

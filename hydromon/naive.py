@@ -20,7 +20,8 @@ import math
 
 import numpy as np
 
-from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F, IdentOptions, Kernels
+from monitor.ident_options import IdentOptions, Kernels
+from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F
 from monitor.layout import (
     N_CH, N_LAGS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
     O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_SLOW, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RING,

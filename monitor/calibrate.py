@@ -40,7 +40,7 @@ from plant_sim.params import RigConfig
 from plant_sim.profiles import PaperIdentification
 
 from .grading import ParamRange, Ranges
-from .identify import IdentOptions
+from .ident_options import IdentOptions
 
 __all__ = ["BAND_EDGES", "RunResults", "Calibration", "x1_thresholds", "label_runs", "calibrate",
            "simulate_runs", "identify_fleet", "severities"]

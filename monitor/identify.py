@@ -46,19 +46,58 @@ import math
 
 import numpy as np
 from numba import njit
-from pydantic import BaseModel, ConfigDict, Field
 
 from plant_sim.model import orifice_z
-from plant_sim.params import RigConfig
 
 from .layout import (
-    C_A1, C_A2, C_FL, C_KF, C_KP, C_PS, C_V10, C_V20, H_BC, H_H, H_IV, H_IV_START, H_LAM,
-    H_NOISE_N, H_P0, H_VSTICK, H_GUARD, H_PMAX, H_STEP_TOL, H_WARM, H_GATE2, HYPER_SIZE, N_CH, N_LAGS, O_BC, O_N, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_HIST,
-    O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_OUTLIERS, O_RES_W, O_RING, O_SLOW, O_ROWS, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RIG_CONST_SIZE,
-    N_CH_SVF, RING, SG_HALF, STATE_SIZE,
+    C_A1,
+    C_A2,
+    C_FL,
+    C_KF,
+    C_KP,
+    C_PS,
+    C_V10,
+    C_V20,
+    H_GUARD,
+    H_H,
+    H_IV,
+    H_IV_START,
+    H_LAM,
+    H_NOISE_N,
+    H_PMAX,
+    H_STEP_TOL,
+    H_VSTICK,
+    H_WARM,
+    N_CH,
+    N_CH_SVF,
+    N_LAGS,
+    O_BC,
+    O_CLAMPED,
+    O_N,
+    O_NOISE,
+    O_NOISE_N,
+    O_P_C,
+    O_P_F,
+    O_P_V,
+    O_RES_COV,
+    O_RES_E2,
+    O_RES_HIST,
+    O_RES_W,
+    O_RING,
+    O_ROWS,
+    O_SLOW,
+    O_SVF_C,
+    O_SVF_F,
+    O_TH_C,
+    O_TH_F,
+    O_TH_V,
+    O_XH,
+    RING,
+    SG_HALF,
 )
+from .outlier_gate import gate_step
 from .rls import riv_update, rls_update
-from .svf import noise_gram, svf_bank_init, svf_bank_step, svf_matrices
+from .svf import svf_bank_init, svf_bank_step
 
 N_PARAMS = 12  # PARAM_NAMES: the paper's 11 and the valve's static gain K_sv
 
@@ -68,138 +107,6 @@ Y_NOM_F = 1e4  # [N]
 THETA_NOM_C = np.array([1e-9, 1e-3, 1e-11, 1e-11])  # 1/beta [1/Pa], theta, C_ip, C_ep
 Y_NOM_C = 1e-3  # [m^3/s]
 X5_NOM = 1e-4  # [m]
-
-
-class IdentOptions(BaseModel):
-    """Hyperparameters of the identifier (shared by a fleet).
-
-    Attributes
-    ----------
-    a_force, a_chamber : float
-        SVF bandwidths [rad/s] of the force and chamber equations.
-    lam : float
-        Forgetting factor per sample (1 = growing window; 0.9995 ~ 20 s memory at 100 Hz).
-    warmup : float
-        Filter settling time before rows are used [s]. The filters start as if each signal
-        had been constant forever; a rig already moving (or a kink in the first samples)
-        leaves a transient ~ (a t)^2 e^(-a t) in the rows. Measured noise-free on the paper's
-        input: chamber filters started 30 ms into the run left C_d W/sqrt(rho) -0.024 % off
-        after 0.4 s (0.001 % after 0.8 s), but waiting 0.8 s costs a fifth of the accuracy
-        under noise (the start from rest is the best-excited part of the run), so 0.4 s.
-    step_tol : float
-        |second difference of ug| [V] above which a valve row is skipped as a step.
-    bias_compensation, instrumental_variables : bool
-        Our noise fixes (off = plain least squares on the same filtered rows).
-    iv_start : int
-        Valve rows of plain least squares before the IV takes over (its auxiliary model needs
-        a first estimate). Their x5-noise bias stays in the estimate: measured on 10 s that
-        start mid-run (no start from rest to excite the spool; paper's input, realistic
-        noise), 100 such rows gave K_sv omega^2 146 % off with the truth outside +-3 SE on
-        every seed, 30 rows 93 % off with it inside on 9 of 10; from rest 0.27 -> 0.31 %.
-    p0, p_max : float
-        Initial covariance (a weak prior) and anti-windup trace bound, scaled units.
-    noise_window : int
-        Samples averaged by the online sensor-noise estimate.
-    min_rows : int
-        Rows every equation needs before the estimate counts as converged.
-    v_stick : float
-        Piston speed [m/s] below which it counts as near rest (a reversal or sticking), where
-        the Coulomb term sign(x2) is not what the friction does; raised to 3 velocity-noise
-        sigmas when the sensor is noisier.
-    reversal_guard : float
-        Time after a near-rest instant whose force rows are skipped [s] (the filter's memory).
-    outlier_gate : float
-        Sensor glitches: a sample of x1, x3, x4 or x5 that jumps away from both neighbours,
-        with a centred second difference above outlier_gate times the channel's running rms
-        of it, is replaced by its neighbours' mean and counted (0 = off); a burst of two on
-        x1, x3 or x4 goes onto the line between its neighbours (see ``_gate``). Every sample
-        waits two samples for its right neighbours. Measured (paper's input, realistic noise, 20 s):
-        one x3 sample 30 MPa off left the chamber parameters 66-98 % off for good, and one
-        x1 sample 5 cm off graded a healthy rig `fault`.
-    """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    a_force: float = Field(80.0, gt=0)
-    a_chamber: float = Field(25.0, gt=0)
-    lam: float = Field(1.0, gt=0, le=1)
-    warmup: float = Field(0.4, ge=0)
-    step_tol: float = Field(0.1, gt=0)
-    bias_compensation: bool = True
-    instrumental_variables: bool = True
-    iv_start: int = Field(30, ge=10)
-    p0: float = Field(1e9, gt=0)
-    p_max: float = Field(1e13, gt=0)
-    noise_window: int = Field(2000, ge=10)
-    min_rows: int = Field(300, ge=1)
-    v_stick: float = Field(2e-3, ge=0)
-    reversal_guard: float = Field(0.1, ge=0)
-    outlier_gate: float = Field(10.0, ge=0)
-
-
-class Kernels:
-    """Fleet-wide constant arrays derived from the options and sample period h [s]."""
-
-    def __init__(self, options: IdentOptions, h: float):
-        self.options = options
-        self.h = h
-        self.m_f = svf_matrices(options.a_force, h)
-        self.m_c = svf_matrices(options.a_chamber, h)
-        self.g_f = noise_gram(self.m_f)
-        self.g_c = noise_gram(self.m_c)
-        hy = np.zeros(HYPER_SIZE)
-        hy[H_H] = h
-        hy[H_LAM] = options.lam
-        hy[H_WARM] = math.ceil(options.warmup / h)
-        hy[H_STEP_TOL] = options.step_tol
-        hy[H_BC] = 1.0 if options.bias_compensation else 0.0
-        hy[H_IV] = 1.0 if options.instrumental_variables else 0.0
-        hy[H_IV_START] = options.iv_start
-        hy[H_P0] = options.p0
-        hy[H_PMAX] = options.p_max
-        hy[H_NOISE_N] = options.noise_window
-        hy[H_VSTICK] = options.v_stick
-        hy[H_GUARD] = math.ceil(options.reversal_guard / h)
-        hy[H_GATE2] = options.outlier_gate ** 2
-        self.hyper = hy
-
-
-def rig_constants(config: RigConfig) -> np.ndarray:
-    """The per-rig constant row (SI) of ``monitor.layout``."""
-    c = np.empty(RIG_CONST_SIZE)
-    c[C_A1], c[C_A2], c[C_V10], c[C_V20] = config.A1, config.A2, config.V10, config.V20
-    c[C_PS], c[C_FL], c[C_KP], c[C_KF] = config.p_s, config.F_L, config.K_p, config.K_f
-    return c
-
-
-def new_state(hyper: np.ndarray) -> np.ndarray:
-    """A fresh rig state row: no samples, weak prior P0 = p0 I."""
-    st = np.zeros(STATE_SIZE)
-    reset_estimates(st, hyper)
-    return st
-
-
-@njit(cache=True, error_model="numpy")
-def reset_estimates(st: np.ndarray, hyper: np.ndarray) -> None:
-    """Forget all estimates (theta = 0, P = p0 I) and statistics; keeps nothing."""
-    st[:] = 0.0
-    p0 = hyper[H_P0]
-    for i in range(4):
-        st[O_P_F + 5 * i] = p0
-        st[O_P_C + 5 * i] = p0
-    for i in range(5):
-        st[O_P_V + 6 * i] = p0
-
-
-@njit(cache=True, error_model="numpy")
-def reset_signals(st: np.ndarray) -> None:
-    """Restart the signal path (after a gap): filters re-initialise, estimates are kept.
-
-    The samples the outlier gate holds are dropped: their right neighbours are on the far side
-    of the gap.
-    """
-    st[O_N] = 0.0
-    st[O_GATE_HAS] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -288,126 +195,12 @@ def _valve_row(st, rc, hyper, n, phi, z):
 
 
 WORK_SIZE = 80
-# The per-sample pieces (_gate, identify_step, _consume, _force_rows, _chamber_rows) are inlined
+# The per-sample pieces (gate_step, identify_step, _consume, _force_rows, _chamber_rows) are inlined
 # into their caller at numba's IR level: as separate compiled calls the 1000-rig batch ran at
 # 782,000 samples/s, inlined at 925,000 (one thread, process time, same minutes); a fresh
 # compile still takes about 22 s. Inlining the small helpers as well tripled the compile time
 # for 3 % more.
 V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
-GATE_SETTLE = 50  # samples of the gate's scale estimate before it judges any sample
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _gate(st, hyper, ug, x1, x3, x4, x5, out):
-    """Outlier gate with two samples of lookahead: hold the two newest arrivals, release the
-    one before them.
-
-    ``out`` gets the released sample (ug, x1, x3, x4, x5) with a glitched sensor value
-    replaced. Returns False when nothing is released (the first two arrivals after a start
-    or a gap). Per sensor, with L the last released value, g1 the sample being released,
-    g2 the next one and r the arrival:
-
-    * a lone glitch: g1 jumps away from both L and g2 (centred second difference above the
-      threshold, both jumps of the same sign and large) -> the mean of L and g2;
-    * a pair (x1, x3, x4 only: the spool's own overshoot lasts two samples): g1 and g2 sit
-      together away from both L and r (each end jumps the same way by at least 3/4 of the
-      departure, the two within 1/4 of it, L and r within 1/4 of it, the departure past the
-      lone test's threshold) -> both on the line from L to r (g2 is replaced where it is
-      held, and released as that at the next arrival).
-
-    A step, a kink or a reversal does not jump away from both sides, so they pass.
-    """
-    has = st[O_GATE_HAS]
-    if has < 2.0:
-        o = O_GATE + N_CH if has > 0.0 else O_GATE
-        st[o], st[o + 1], st[o + 2], st[o + 3], st[o + 4] = ug, x1, x3, x4, x5
-        st[O_GATE_HAS] = has + 1.0
-        return False
-    for ch in range(N_CH):  # release g1; g2 moves to the first slot, the arrival to the second
-        out[ch] = st[O_GATE + ch]
-        st[O_GATE + ch] = st[O_GATE + N_CH + ch]
-    o = O_GATE + N_CH
-    st[o], st[o + 1], st[o + 2], st[o + 3], st[o + 4] = ug, x1, x3, x4, x5
-    if st[O_N] < 1.0 or hyper[H_GATE2] <= 0.0:
-        return True  # no left neighbour yet, or the gate is off
-    cnt = st[O_GATE_N] + 1.0
-    st[O_GATE_N] = cnt
-    w = 1.0 / min(cnt, hyper[H_NOISE_N])
-    for c in range(4):
-        ch = c + 1
-        left = _ring(st, 0, ch)
-        mid = out[ch]
-        right = st[O_GATE + ch]
-        a = mid - left
-        b = mid - right
-        d2 = -(a + b)
-        v = d2 * d2
-        cur = st[O_GATE_S + c]
-        if cnt > GATE_SETTLE:
-            if v > hyper[H_GATE2] * cur and a * b > 0.0 and min(abs(a), abs(b)) > 0.25 * abs(d2):
-                out[ch] = 0.5 * (left + right)
-                st[O_OUTLIERS + c] += 1.0
-                continue  # a glitch does not count toward the scale
-            if c < 3:  # x1, x3, x4 (not x5: the spool's own peaks last two samples)
-                far = st[O_GATE + N_CH + ch]
-                dev = 0.5 * (mid + right) - 0.5 * (left + far)  # the pair's departure from its ends
-                pa = mid - left
-                pb = right - far
-                if dev * dev > hyper[H_GATE2] * cur and pa * dev > 0.0 and pb * dev > 0.0 \
-                        and min(abs(pa), abs(pb)) > 0.75 * abs(dev) and abs(mid - right) < 0.25 * abs(dev) \
-                        and abs(far - left) < 0.25 * abs(dev):
-                    out[ch] = left + (far - left) / 3.0
-                    st[O_GATE + ch] = left + 2.0 * (far - left) / 3.0
-                    st[O_OUTLIERS + c] += 2.0
-                    continue
-            if v > 100.0 * cur:
-                v = 100.0 * cur
-        st[O_GATE_S + c] = cur + w * (v - cur)
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def _gate_record(st, hyper, samples, out):
-    s = np.empty(N_CH)
-    k = 0
-    for i in range(samples.shape[0]):
-        if _gate(st, hyper, samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4], s):
-            out[k] = s
-            k += 1
-            for ch in range(N_CH):  # the released sample is the next one's left neighbour
-                st[O_RING + ch] = s[ch]
-            st[O_N] += 1.0
-    # the samples the gate still holds, as it holds them (the second of a burst is replaced
-    # where it is held, and counted, before it is released)
-    h = int(st[O_GATE_HAS])
-    for j in range(h):
-        for ch in range(N_CH):
-            out[samples.shape[0] - h + j, ch] = st[O_GATE + j * N_CH + ch]
-    return k
-
-
-def gated(samples: np.ndarray, options: IdentOptions | None = None,
-          restarts=()) -> tuple[np.ndarray, np.ndarray]:
-    """A record (N, 5) as the identifier sees it after its outlier gate, and the glitches
-    replaced per sensor (x1, x3, x4, x5). The last two samples, which the gate still holds in
-    a stream, come back as it holds them (unjudged, but the second of a burst replaced). For whole-record methods (``monitor.refine``) and plots that
-    should see what the streaming estimates saw. ``restarts``: indices of samples that follow
-    a gap, where the stream restarts its filters (``reset_signals``; the samples the gate
-    held before the gap come back as it held them)."""
-    samples = np.ascontiguousarray(samples, dtype=np.float64)
-    if samples.ndim != 2 or samples.shape[1] != N_CH:
-        raise ValueError(f"samples must be (N, {N_CH}) = (ug, x1, x3, x4, x5), got {samples.shape}")
-    hyper = Kernels(options or IdentOptions(), 0.01).hyper  # the gate needs no sample period
-    st = new_state(hyper)
-    out = samples.copy()
-    bounds = [0, *sorted({int(i) for i in restarts if 0 < i < len(samples)}), len(samples)]
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        if lo:
-            reset_signals(st)
-        _gate_record(st, hyper, samples[lo:hi], out[lo:hi])
-    return out, st[O_OUTLIERS:O_OUTLIERS + 4].copy()
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
                   ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
@@ -417,7 +210,7 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     ``work`` is scratch space of WORK_SIZE floats (so the per-sample path allocates nothing).
     """
     s = work[74:79]
-    if _gate(st, hyper, ug, x1, x3, x4, x5, s):
+    if gate_step(st, hyper, ug, x1, x3, x4, x5, s):
         _consume(st, rc, hyper, m_f, m_c, s[0], s[1], s[2], s[3], s[4], work)
 
 

@@ -78,7 +78,7 @@ O_CLAMPED = OFFSETS["CLAMPED"][0]
 (C_A1, C_A2, C_V10, C_V20, C_PS, C_FL, C_KP, C_KF) = range(8)
 RIG_CONST_SIZE = 8
 
-# Hyperparameter row shared by a fleet (see identify.IdentOptions).
+# Hyperparameter row shared by a fleet (see ident_options.IdentOptions).
 (H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD,
  H_GATE2) = range(13)
 HYPER_SIZE = 13

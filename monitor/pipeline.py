@@ -21,7 +21,7 @@ from plant_sim.params import RigConfig
 
 from .fleet_kernel import _run, assess_rig, partition_rigs, pipeline_step
 from .grading import Ranges, grade_kernel
-from .identify import IdentOptions, Kernels, new_state, reset_signals, rig_constants
+from .ident_options import IdentOptions, Kernels, new_state, reset_signals, rig_constants
 from .layout import O_CLAMPED, O_OUTLIERS, STATE_SIZE
 
 N_P = len(PARAM_NAMES)

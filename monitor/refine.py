@@ -33,7 +33,8 @@ from numba import njit
 from scipy.optimize import least_squares
 
 from hydromon.contract import PARAM_NAMES
-from monitor.identify import IdentOptions, gated
+from monitor.ident_options import IdentOptions
+from monitor.outlier_gate import gated
 from plant_sim.model import derivatives
 from plant_sim.params import (
     P_B, P_BETA, P_CDW_RHO, P_CEP, P_CIP, P_FC, P_FV, P_KSV, P_KT, P_M, P_WSV, P_ZSV, PlantParams, RigConfig,
@@ -193,7 +194,7 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
     """Fit all parameters to a record by prediction error.
 
     The record is taken as the streaming identifier's outlier gate leaves it
-    (``monitor.identify.gated`` with ``options``), so the fit sees what the streaming
+    (``monitor.outlier_gate.gated`` with ``options``), so the fit sees what the streaming
     estimates saw and a sensor glitch cannot pull it.
 
     Parameters

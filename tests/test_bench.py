@@ -15,7 +15,7 @@ import pytest
 
 from hydromon.bench import paper_var_samples
 from hydromon.naive import NaiveIdentifier
-from monitor.identify import IdentOptions
+from monitor.ident_options import IdentOptions
 from monitor.layout import OFFSETS
 from monitor.pipeline import Fleet
 from plant_sim.params import RigConfig

@@ -1,4 +1,4 @@
-"""The identifier's outlier gate (monitor.identify._gate): sensor glitches are replaced, real signal passes."""
+"""The identifier's outlier gate (monitor.outlier_gate.gate_step): sensor glitches are replaced, real signal passes."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from monitor.identify import IdentOptions
+from monitor.ident_options import IdentOptions
 from monitor.layout import O_OUTLIERS
 from monitor.pipeline import Fleet
 from plant_sim.noise import noise_model
@@ -75,7 +75,7 @@ def test_glitch_pairs_are_replaced_and_leave_the_estimates(realistic_run):
     for name, value in clean.params.items():
         assert abs(dirty.params[name] - value) <= 0.05 * clean.std_errors[name], name
     # and what the gate put in their place: the line between the burst's neighbours
-    from monitor.identify import gated
+    from monitor.outlier_gate import gated
 
     dirty_record = _paired(realistic_run.samples)
     cleaned, _ = gated(dirty_record)
@@ -187,8 +187,8 @@ def test_a_record_that_starts_mid_run_keeps_the_spools_own_peaks():
 
 
 def test_gated_record_is_what_the_stream_saw(realistic_run):
-    """monitor.identify.gated (for whole-record methods) replaces the same samples the stream does."""
-    from monitor.identify import gated
+    """monitor.outlier_gate.gated (for whole-record methods) replaces the same samples the stream does."""
+    from monitor.outlier_gate import gated
 
     dirty = _glitched(realistic_run.samples)
     cleaned, counts = gated(dirty)

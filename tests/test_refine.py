@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hydromon.evaluate import Recording, evaluate, to_json
-from monitor.identify import IdentOptions
+from monitor.ident_options import IdentOptions
 from monitor.pipeline import Fleet
 from monitor.refine import REFINED, refine, sensor_noise
 from plant_sim.noise import noise_model

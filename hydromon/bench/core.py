@@ -62,7 +62,8 @@ def bench_identify_single(samples: np.ndarray, repeats: int = 3) -> float:
     """samples/s of the compiled identification kernel alone (``monitor.identify.fleet_step``),
     one call per sample for one rig: the like-for-like twin of :func:`bench_naive` (no read-out,
     no grading, no ``Fleet.update`` argument checks)."""
-    from monitor.identify import IdentOptions, Kernels, fleet_step, new_state, rig_constants
+    from monitor.ident_options import IdentOptions, Kernels, new_state, rig_constants
+    from monitor.identify import fleet_step
     from plant_sim.params import RigConfig
 
     k = Kernels(IdentOptions(), RigConfig().h)

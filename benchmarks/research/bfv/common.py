@@ -3,7 +3,7 @@ import sys
 import os  # noqa: F401
 import numpy as np
 from monitor.pipeline import Fleet
-from monitor.identify import IdentOptions
+from monitor.ident_options import IdentOptions
 from plant_sim.noise import noise_model, NoiseModel
 from plant_sim.params import PlantParams, RigConfig
 from plant_sim.profiles import PaperIdentification
