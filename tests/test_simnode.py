@@ -215,7 +215,7 @@ def test_write_csv_is_one_rigs_run():
 
 
 def test_write_mcap_reads_back_as_samples_and_config():
-    mcap_io = pytest.importorskip("hydromon.mcap_io")
+    from hydromon import mcap_io
     spec = FleetSpec(config=RigConfig(F_L=3500.0), rigs=[RigSpec(id="a", severity=0.2), RigSpec(id="b", table4=1)])
     buf = io.BytesIO()
     assert simnode.write_mcap(spec, 0.3, buf) == 2 + 2 * 30
