@@ -70,7 +70,10 @@ class Evaluation:
 
     @property
     def status(self) -> str:
-        """``ok`` once converged, else ``converging``."""
+        """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``),
+        ``ok`` once converged, else ``converging`` (the live monitor's statuses)."""
+        if self.assessment.implausible:
+            return "bad-input"
         return "ok" if self.assessment.converged else "converging"
 
 
@@ -256,6 +259,7 @@ def to_json(ev: Evaluation) -> dict:
     if ev.glitches is not None:  # added keys
         out["glitches_replaced"] = ev.glitches
     out["x1_outside_chambers"] = ev.x1_clamped
+    out["implausible"] = list(a.implausible)  # impossible estimates: the grade is withheld
     rec = ev.recording
     out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected}
     if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
@@ -305,6 +309,11 @@ def render(ev: Evaluation, console=None) -> None:
     if r.restarts or r.rejected:
         console.print(f"[yellow]{len(r.restarts)} gap(s), {r.missing} sample(s) missing, {r.rejected} invalid "
                       "sample(s) skipped: the filters restarted after each gap, the estimates carried on[/yellow]")
+    if a.implausible:
+        what = ", ".join(f"{k} = {a.params[k]:.3g} (SE {a.std_errors[k]:.2g})" for k in a.implausible)
+        console.print(f"[red]not graded: physically impossible estimates ({what}; each must be positive). The "
+                      "record does not obey the model: check the units (SI: m, Pa, V), the signs and zeros of x1, "
+                      "x3, x4, x5 and ug, and the rig constants[/red]")
     if ev.x1_clamped:
         c = r.config
         lo, hi = -(1 - V_MIN) * c.V10 / c.A1, (1 - V_MIN) * c.V20 / c.A2

@@ -25,7 +25,9 @@ reset (``restarts``). A seq above ``last + 1`` is a gap (``gaps``, ``missing`` s
 the rig's filters restart (``Fleet.reset_signals``; estimates carry on).
 
 Health status, in order of precedence: ``bad-input`` if a message on this rig's sample
-key was rejected since its previous health message; ``stale`` while fewer than
+key was rejected since its previous health message, or if the rig's estimates are physically
+impossible (``monitor.plausibility``: samples in wrong units, of the wrong sign or zero, or a
+wrong rig config; the grade is then ``unknown``); ``stale`` while fewer than
 ``stale_samples`` (default ``eval_every``) samples have followed the last gap, so the
 first health after a gap is always stale; ``converging`` while the estimator has not
 converged or cannot place the grade (level -1); else ``ok``.
@@ -206,9 +208,11 @@ class MonitorCore:
         seqs, status, msg = self._b_seqs, self._b_status, self._b_msg
         sample = ev.sample.tolist()
         statuses = []
-        for i, level, conv in zip(sample, ev.level.tolist(), ev.converged.tolist()):
+        for i, level, conv, bad in zip(sample, ev.level.tolist(), ev.converged.tolist(), ev.implausible.tolist()):
             st = status.get(i) if status else None
-            statuses.append(st if st is not None else "ok" if conv and level >= 0 else "converging")
+            if st is None:
+                st = "bad-input" if bad else "ok" if conv and level >= 0 else "converging"
+            statuses.append(st)
         payloads = health_payloads([seqs[i] for i in sample], t[ev.sample], ev.level, ev.confidence, ev.params,
                                    ev.std_errors, ev.grades, statuses, self._graded)
         ids, keys, latest = self.fleet.ids, self._health_keys, self.latest

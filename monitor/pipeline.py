@@ -23,6 +23,7 @@ from .fleet_kernel import _run, assess_rig, partition_rigs, pipeline_step
 from .grading import Ranges, grade_kernel
 from .ident_options import IdentOptions, Kernels, new_state, reset_signals, rig_constants
 from .layout import O_CLAMPED, O_OUTLIERS, STATE_SIZE
+from .plausibility import implausible_mask, implausible_names
 
 N_P = len(PARAM_NAMES)
 
@@ -50,6 +51,10 @@ class Assessment:
     param_levels : dict
         Graded parameters' levels (-1 = not placed).
     converged : bool
+    implausible : tuple of str
+        Parameters whose estimate is physically impossible (``monitor.plausibility``): the
+        input is in wrong units, of the wrong sign or zero, or the rig constants are wrong;
+        the rig is then not graded (level -1).
     """
 
     count: int
@@ -59,6 +64,7 @@ class Assessment:
     std_errors: dict
     param_levels: dict
     converged: bool
+    implausible: tuple = ()
 
     @property
     def grade(self) -> str:
@@ -82,6 +88,7 @@ class Events:
     std_errors: np.ndarray
     grades: np.ndarray
     converged: np.ndarray
+    implausible: np.ndarray  # physically impossible estimates: not graded (monitor.plausibility)
 
     def __len__(self) -> int:
         return len(self.rig)
@@ -99,7 +106,22 @@ class Events:
             params=dict(zip(PARAM_NAMES, map(float, self.params[i]))),
             std_errors=dict(zip(PARAM_NAMES, map(float, self.std_errors[i]))),
             param_levels=dict(zip(graded, map(int, self.grades[i]))), converged=bool(self.converged[i]),
+            implausible=(implausible_names(dict(zip(PARAM_NAMES, self.params[i].tolist())),
+                                           dict(zip(PARAM_NAMES, self.std_errors[i].tolist())))
+                         if self.implausible[i] else ()),
         )
+
+    @staticmethod
+    def of_kernel(arrays) -> Events:
+        """Events from the kernel's event arrays (owned by the caller), with the rows whose
+        estimates are physically impossible ungraded: level -1, confidence 0, grades -1."""
+        rig, sample, counts, level, conf, params, se, grades, conv = arrays
+        bad = implausible_mask(params, se)
+        if bad.any():
+            level[bad] = -1
+            conf[bad] = 0.0
+            grades[bad] = -1
+        return Events(rig, sample, counts, level, conf, params, se, grades, conv, bad)
 
 
 class Fleet:
@@ -157,7 +179,7 @@ class Fleet:
         self.bands = np.full((capacity, len(self._ra.index)), -1, dtype=np.int64)
         self._ev_cap = 0
         self._alloc_events(16)
-        self._no_events = Events(*(v[:0].copy() for v in self._ev))
+        self._no_events = Events.of_kernel([v[:0].copy() for v in self._ev])
         self._bind()
 
     def _bind(self) -> None:
@@ -240,7 +262,7 @@ class Fleet:
         n = pipeline_step(*self._args, rig, samples, *self._ev)
         if n == 0:
             return self._no_events
-        return Events(*(v[:n].copy() for v in self._ev))
+        return Events.of_kernel([v[:n].copy() for v in self._ev])
 
     def _update_parallel(self, rig: np.ndarray, samples: np.ndarray, cap: int) -> Events:
         t = self.threads
@@ -261,7 +283,7 @@ class Fleet:
         take = np.concatenate([np.arange(k * cap, k * cap + n_ev[k]) for k in range(t)])
         # each part's events are in arrival order; merge them into the serial path's order
         take = take[np.argsort(self._ev[1][take], kind="stable")]
-        return Events(*(v[take] for v in self._ev))
+        return Events.of_kernel([v[take] for v in self._ev])
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
@@ -302,8 +324,8 @@ class Fleet:
         band = self.bands[rig:rig + 1].copy()
         level, grades, conf = grade_kernel(p, s, conv, ra.index, ra.sign, ra.edges, ra.margins,
                                            self.grade_z, band)
-        one = Events(rig=np.array([rig]), sample=np.array([-1]), counts=self.counts[rig:rig + 1].copy(),
-                     level=level, confidence=conf, params=p, std_errors=s, grades=grades, converged=conv)
+        one = Events.of_kernel([np.array([rig]), np.array([-1]), self.counts[rig:rig + 1].copy(), level, conf, p, s,
+                                grades, conv])
         return one.assessment(0, ra.names)
 
 

@@ -11,7 +11,7 @@ from plant_sim.degradation import TABLE4_PAPER_GRADES, table4_group
 from plant_sim.profiles import PaperVariable
 from plant_sim.simulate import simulate
 
-KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps",
+KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps", "implausible",
         "x1_outside_chambers"}
 
 

@@ -1,0 +1,82 @@
+"""Physically impossible estimates are not graded (monitor.plausibility): input in wrong units,
+of the wrong sign or under a wrong zero gets status bad-input, grade unknown, and says why."""
+
+import json
+
+import numpy as np
+import orjson
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hydromon.cli import main
+from hydromon.contract import PARAM_NAMES, sample_key
+from hydromon.evaluate import csv_text
+from hydromon.monitorcore import MonitorCore
+from monitor.plausibility import POSITIVE, Z_IMPLAUSIBLE, implausible_mask, implausible_names
+from plant_sim.degradation import table4_group
+from plant_sim.profiles import PaperVariable
+from plant_sim.simulate import simulate
+
+BAR = 1e5  # [Pa]
+
+
+@pytest.fixture(scope="module")
+def g1_run():
+    return simulate(PaperVariable(), 10.0, params=table4_group(1))
+
+
+@settings(max_examples=200, deadline=None)
+@given(v=st.lists(st.floats(-1e6, 1e6), min_size=len(PARAM_NAMES), max_size=len(PARAM_NAMES)),
+       s=st.lists(st.floats(0, 1e6) | st.just(float("inf")), min_size=len(PARAM_NAMES), max_size=len(PARAM_NAMES)))
+def test_a_positive_parameter_below_minus_z_standard_errors_and_nothing_else_is_implausible(v, s):
+    p, se = np.array([v]), np.array([s])
+    expect = any(np.isfinite(se[0, PARAM_NAMES.index(n)]) and p[0, PARAM_NAMES.index(n)]
+                 < -Z_IMPLAUSIBLE * se[0, PARAM_NAMES.index(n)] for n in POSITIVE)
+    assert bool(implausible_mask(p, se)[0]) == expect
+    names = implausible_names(dict(zip(PARAM_NAMES, v)), dict(zip(PARAM_NAMES, s)))
+    assert bool(names) == expect and set(names) <= set(POSITIVE)
+
+
+def _evaluate_json(run, tmp_path, capsys, scale=(1.0, 1.0, 1.0, 1.0, 1.0), offset=(0, 0, 0, 0, 0)):
+    samples = run.samples * np.array(scale) + np.array(offset)
+    path = tmp_path / "rec.csv"
+    path.write_text(csv_text(run.t, samples))
+    assert main(["evaluate", str(path), "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_si_input_is_graded(g1_run, tmp_path, capsys):
+    doc = _evaluate_json(g1_run, tmp_path, capsys)
+    assert doc["status"] == "ok" and doc["grade"] != "unknown" and doc["implausible"] == []
+
+
+@pytest.mark.parametrize("what, scale, offset", [
+    ("x1 in cm", (1, 100, 1, 1, 1), (0, 0, 0, 0, 0)),
+    ("x1 negated", (1, -1, 1, 1, 1), (0, 0, 0, 0, 0)),
+    ("x1 zero 5 cm off", (1, 1, 1, 1, 1), (0, 0.05, 0, 0, 0)),
+    ("pressures in bar", (1, 1, 1 / BAR, 1 / BAR, 1), (0, 0, 0, 0, 0)),
+])
+def test_input_in_wrong_units_sign_or_zero_is_not_graded(g1_run, tmp_path, capsys, what, scale, offset):
+    # each was graded `fault` with confidence 0.8-1.0 and status ok before
+    doc = _evaluate_json(g1_run, tmp_path, capsys, scale, offset)
+    assert doc["status"] == "bad-input" and doc["grade"] == "unknown" and doc["level"] is None, what
+    assert doc["confidence"] == 0.0 and doc["implausible"], what
+    assert all(doc["params"][k] < 0 for k in doc["implausible"]), what
+    assert main(["evaluate", str(tmp_path / "rec.csv")]) == 0
+    assert "physically impossible" in capsys.readouterr().out
+
+
+def test_the_live_monitor_says_bad_input_for_pressures_in_bar(g1_run):
+    core = MonitorCore()
+    msgs = [(sample_key("r1"), orjson.dumps({"seq": k, "t": float(t), "ug": row[0], "x1": row[1],
+                                              "x3": row[2] / BAR, "x4": row[3] / BAR, "x5": row[4]}))
+            for k, (t, row) in enumerate(zip(g1_run.t.tolist(), g1_run.samples.tolist()))]
+    health = [orjson.loads(p) for _, p in core.process(msgs)]
+    assert health[-1]["status"] == "bad-input" and health[-1]["grade"] == "unknown"
+    assert health[-1]["level"] is None and health[-1]["param_grades"] == {k: "unknown" for k in health[-1]["param_grades"]}
+    # the same rig in SI is graded
+    ok = [(k, orjson.dumps({**orjson.loads(p), "x3": orjson.loads(p)["x3"] * BAR, "x4": orjson.loads(p)["x4"] * BAR}))
+          for k, p in msgs]
+    health = [orjson.loads(p) for _, p in MonitorCore().process(ok)]
+    assert health[-1]["status"] == "ok" and health[-1]["grade"] != "unknown"
