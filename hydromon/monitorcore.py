@@ -27,7 +27,8 @@ the rig's filters restart (``Fleet.reset_signals``; estimates carry on).
 Health status, in order of precedence: ``bad-input`` if a message on this rig's sample
 key was rejected since its previous health message, or if the rig's estimates are physically
 impossible (``monitor.plausibility``: samples in wrong units, of the wrong sign or zero, or a
-wrong rig config; the grade is then ``unknown``); ``stale`` while fewer than
+wrong rig config; the grade is then ``unknown``), or if its x1 has gone beyond a chamber's end
+since its estimates (re)started (``X1_CLAMPED_WARNING``; the grade stays); ``stale`` while fewer than
 ``stale_samples`` (default ``eval_every``) samples have followed the last gap, so the
 first health after a gap is always stale; ``converging`` while the estimator has not
 converged or cannot place the grade (level -1); else ``ok``.
@@ -208,7 +209,9 @@ class MonitorCore:
         seqs, status, msg = self._b_seqs, self._b_status, self._b_msg
         sample = ev.sample.tolist()
         statuses = []
-        for i, level, conv, bad in zip(sample, ev.level.tolist(), ev.converged.tolist(), ev.implausible.tolist()):
+        # a rig whose x1 went beyond a chamber's end has a wrong config or x1: its input is bad
+        bad_input = (ev.implausible | (self.fleet.x1_clamped_all()[ev.rig] > 0)).tolist()
+        for i, level, conv, bad in zip(sample, ev.level.tolist(), ev.converged.tolist(), bad_input):
             st = status.get(i) if status else None
             if st is None:
                 st = "bad-input" if bad else "ok" if conv and level >= 0 else "converging"

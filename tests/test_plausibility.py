@@ -80,3 +80,19 @@ def test_the_live_monitor_says_bad_input_for_pressures_in_bar(g1_run):
           for k, p in msgs]
     health = [orjson.loads(p) for _, p in MonitorCore().process(ok)]
     assert health[-1]["status"] == "ok" and health[-1]["grade"] != "unknown"
+
+
+def test_a_rig_whose_x1_went_beyond_a_chamber_end_reports_bad_input():
+    from hydromon.contract import RigConfig, config_key
+
+    core = MonitorCore()
+    # rig "bad": chamber 1 empties at x1 = -V10 / A1 = -0.05 m, and its x1 reads -0.06 m
+    msgs = [(config_key("bad"), orjson.dumps(RigConfig(V10=0.0004).model_dump(mode="json")))]
+    for k in range(40):
+        for rig, x1 in (("bad", -0.06), ("good", 0.01)):
+            msgs.append((sample_key(rig), orjson.dumps({"seq": k, "t": k * 0.01, "ug": 2.0, "x1": x1, "x3": 6e6,
+                                                        "x4": 4e6, "x5": 1e-5})))
+    status = {}
+    for key, payload in core.process(msgs):
+        status.setdefault(key.split("/")[2], set()).add(orjson.loads(payload)["status"])
+    assert status["bad"] >= {"bad-input"} and "bad-input" not in status["good"], status
