@@ -1,20 +1,22 @@
-"""Physically impossible estimates: the sign of input in wrong units, with the wrong sign or zero,
-or under the wrong rig constants.
+"""Physically impossible estimates: the sign of input in wrong units, with the wrong sign, or
+under the wrong rig constants.
 
-Mass, viscous damping, compressibility, the orifice coefficient and the valve's static gain are
-positive on every rig. An estimate of one of them that is negative by more
-than Z_IMPLAUSIBLE standard errors cannot come from sensor noise (with honest SEs, below
-3e-5 per parameter even if the truth were 0); the record does not obey the model, so no grade
-made from it is worth anything. Measured (10 s of a healthy rig): x1 in cm, x1 negated, x1
-offset by 5 cm, pressures in bar or psi were each graded ``fault`` with confidence 0.8-1.0,
-and each has such an estimate (K_sv -16 SE, m and B + f_v -5 to -19 SE, 1/beta_e -10 to
--200 SE); the same record in SI has none (the nearest, m, is +4.7 SE).
+Compressibility (1/beta_e), the orifice coefficient (C_d W/sqrt(rho)) and the valve's static
+gain are positive on every rig, and the chamber and valve equations pin them to better than 1 %
+at realistic noise. An estimate of one of them that is negative by more than Z_IMPLAUSIBLE
+standard errors cannot come from sensor noise (with honest SEs, below 3e-5 even if the truth
+were 0): the record does not obey the model, so no grade made from it is worth anything.
+Measured (10 s of a healthy rig): x1 in cm, x1 negated, pressures in bar or psi were each graded
+``fault`` with confidence 0.8-1.0, and each has such an estimate (1/beta_e -10 to -200 SE,
+K_sv -16 SE); the same record in SI has none.
 
-Friction, stiffness and the leakages are left out: their true value can be 0. So are the valve's
-omega^2 and 2 zeta omega: a monitor joining a running rig cannot identify them and their SE
-does not cover the error then (README, Known limits); over 59,760 converged evaluations of 60
-random rigs (3 noise models, from rest and 3 s in, 20 s each) they were the only false alarm,
-once (2 zeta omega -9.5 SE, mid-run, realistic noise); without them, none.
+Left out: friction, stiffness and the leakages (their true value can be 0); the valve's omega^2
+and 2 zeta omega (a monitor joining a running rig cannot identify them and their SE does not
+cover the error then: one false alarm in 59,760 evaluations, README "Known limits"); and the
+force balance's m and B + f_v: an external load the config's F_L does not know (300-1500 N,
+a real rig's weight on a vertical cylinder) drives B + f_v below -4 SE in 138 of 300
+evaluations of one record, on a rig whose input is right. So a wrong x1 zero (5 cm: B + f_v
+-5 SE, every other parameter plausible) is not caught here.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from hydromon.contract import PARAM_NAMES
 
 __all__ = ["POSITIVE", "Z_IMPLAUSIBLE", "implausible_mask", "implausible_names"]
 
-POSITIVE = ("m", "B_fv", "inv_beta_e", "CdW_sqrt_rho", "K_sv")
+POSITIVE = ("inv_beta_e", "CdW_sqrt_rho", "K_sv")
 Z_IMPLAUSIBLE = 4.0
 _IDX = np.array([PARAM_NAMES.index(n) for n in POSITIVE])
 

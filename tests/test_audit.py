@@ -290,3 +290,15 @@ def test_free_run_with_true_parameters_reproduces_the_record():
     scores = channel_scores(run.measured, fr.measured, slice(0, len(run.t)))
     assert not fr.diverged and fr.clamped == ()
     assert all(s["nrmse"] < 2e-3 for s in scores.values()), scores
+
+
+@pytest.mark.parametrize("what, scale", [("x1 in mm", (1, 1e3, 1, 1, 1)), ("pressures in bar", (1, 1, 1e-5, 1e-5, 1))])
+def test_a_record_in_wrong_units_names_no_cause(what, scale):
+    # a user review: x1 in mm was audited as "sensor_delay, confident", pressures in bar as
+    # "load_offset, confident"; the record does not obey the model, and the audit says so
+    _, run = hidden_case(3, "load_offset")
+    res = audit(run.samples * np.array(scale), run.config)
+    assert res.cause == "none" and not res.confident, (what, res.cause, res.note)
+    assert "does not obey the model" in res.note, what
+    # the same record in SI still names its effect
+    assert audit(run.samples, run.config).cause == "load_offset"

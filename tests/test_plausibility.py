@@ -54,7 +54,7 @@ def test_si_input_is_graded(g1_run, tmp_path, capsys):
 @pytest.mark.parametrize("what, scale, offset", [
     ("x1 in cm", (1, 100, 1, 1, 1), (0, 0, 0, 0, 0)),
     ("x1 negated", (1, -1, 1, 1, 1), (0, 0, 0, 0, 0)),
-    ("x1 zero 5 cm off", (1, 1, 1, 1, 1), (0, 0.05, 0, 0, 0)),
+    ("pressures in psi", (1, 1, 1 / 6894.76, 1 / 6894.76, 1), (0, 0, 0, 0, 0)),
     ("pressures in bar", (1, 1, 1 / BAR, 1 / BAR, 1), (0, 0, 0, 0, 0)),
 ])
 def test_input_in_wrong_units_sign_or_zero_is_not_graded(g1_run, tmp_path, capsys, what, scale, offset):

@@ -226,6 +226,17 @@ def _output_error(cand, params, effect, s, cfg, measured, split, fallback, v0, m
     return to_model(best.x)
 
 
+# Positive on every rig and pinned by the chamber and valve equations (the force balance's m
+# and B + f_v are left out: an unmodelled load offset, one of the effects the audit names, drives
+# the nominal B + f_v negative; monitor.plausibility)
+POSITIVE_AUDIT = ("inv_beta_e", "CdW_sqrt_rho", "K_sv")
+
+
+def impossible_params(params: dict) -> list[str]:
+    """The POSITIVE_AUDIT parameters of a whole-record identification [SI] that are not positive."""
+    return [k for k in POSITIVE_AUDIT if not params.get(k, 1.0) > 0]
+
+
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
           library=LIBRARY) -> AuditResult:
     """Audit one record.
@@ -253,10 +264,10 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     test = slice(split, sig.n)
     measured = s[:, 1:]
 
-    fr_nom, sim_nom = None, None
+    fr_nom, sim_nom, nom_diverged = None, None, False
     if opt.free_run:
         run = free_run(s, cfg, p_nom, v0=float(sig.vl[0]))
-        sim_nom = run.measured
+        sim_nom, nom_diverged = run.measured, run.diverged
         fr_nom = channel_scores(measured, sim_nom, test)
 
     def fit_at(cand, value):
@@ -347,7 +358,16 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
 
     top = results[0]
     cause, confident, note = "none", True, ""
-    if top.score > opt.threshold:
+    impossible = impossible_params(p_nom)
+    if impossible or nom_diverged:
+        # no extension explains a record that does not obey the model at all (wrong units, signs,
+        # zeros or rig constants): naming one would be confidently wrong
+        why = (f"impossible estimates ({', '.join(f'{k} = {p_nom[k]:.3g}' for k in impossible)}; each must be "
+               "positive)" if impossible else "the nominal model's free run diverges")
+        note = (f"the record does not obey the model: {why}; check the units (SI: m, Pa, V), the signs and zeros "
+                "of x1, x3, x4, x5 and ug, and the rig constants")
+        confident = False
+    elif top.score > opt.threshold:
         cause = top.name
         close = [c.name for c in results[1:] if c.score > opt.threshold and c.score > opt.margin * top.score]
         if close:
