@@ -73,6 +73,9 @@ class Rotation:
         Passed to :class:`~hydromon.mcap_io.RecordingWriter`.
     on_file : callable or None
         Called with each new file's path.
+
+    A file that is due is closed at once (complete, readable); its successor is opened by
+    the next message, so a bus that goes quiet leaves no empty part behind.
     """
 
     def __init__(self, out, namespace: str, rotate_bytes: int | None, rotate_ns: int | None,
@@ -116,6 +119,8 @@ class Rotation:
             self._on_file(path)
 
     def write(self, key: str, payload: bytes, log_time_ns: int, publish_time_ns: int) -> None:
+        if self.writer is None:  # the last part was closed when due: this message starts the next
+            self._open()
         self.writer.write(key, payload, log_time_ns, publish_time_ns)
         if self._first_ns is None:
             self._first_ns = log_time_ns
@@ -124,14 +129,17 @@ class Rotation:
             self._configs[key] = payload
 
     def tick(self, now_ns: int) -> None:
-        """Flush the open chunk if due; rotate if the file is big or old enough."""
+        """Flush the open chunk if due; close the file if it is big or old enough (the next
+        message opens the next one)."""
+        if self.writer is None:
+            return
         self.writer.flush_if_due(now_ns)
         if self._first_ns is None:
             return
         if (self.rotate_bytes is not None and self._file.tell() >= self.rotate_bytes) or \
                 (self.rotate_ns is not None and now_ns - self._first_ns >= self.rotate_ns):
             self.close()
-            self._open()
+            self._file = self.writer = None
 
     def close(self) -> None:
         if self._file is not None and not self._file.closed:

@@ -15,7 +15,9 @@
 ``keys`` are zenoh key expressions matched against topics with ``KeyExpr.intersects``
 (``*`` is one chunk, ``**`` any number of chunks, ``$*`` part of a chunk), e.g.
 ``hydro/rig/*/sample``. ``start`` and ``duration`` [s] cut a window out of the recording,
-measured in log time from its first message. A recording made by ``hydromon demo`` or
+measured in log time from its first message; a window that starts later is preceded by each
+rig's last config from before it (stamped with the window's first log time), so its rigs are
+graded with their recorded constants, not the defaults. A recording made by ``hydromon demo`` or
 ``hydromon record`` holds the monitor's verdicts too; to have a live monitor grade a
 replay afresh, replay only ``<ns>/rig/*/sample`` and ``<ns>/rig/*/config`` (else the old
 verdicts go out on the same keys as the new ones).
@@ -34,7 +36,7 @@ from mcap.reader import make_reader
 
 from hydromon.bus import JSON
 from hydromon.contract import DEFAULT_NAMESPACE
-from hydromon.mcap_io import CorruptRecording, TruncatedRecording, opened, read_recording
+from hydromon.mcap_io import CorruptRecording, TruncatedRecording, opened, read_recording, rig_topic
 
 __all__ = ["KeyFilter", "recording_span", "recording_topics", "iter_window", "replay_direct", "replay_bus",
            "ReplayStats", "health_jsonl"]
@@ -98,24 +100,43 @@ def recording_topics(src) -> list[str]:
     return sorted({c.topic for c in _summary(src).channels.values()})
 
 
-def _window(src, start: float | None, duration: float | None) -> tuple[int | None, int | None, int]:
+def _window(src, start: float | None, duration: float | None) -> tuple[int, int | None, int | None, int]:
     for name, v in (("start", start), ("duration", duration)):
         if v is not None and not v >= 0:
             raise ValueError(f"{name} {v!r} must be >= 0 s")
     first, last, count = recording_span(src)
     lo = first + round((start or 0.0) * 1e9)
     hi = None if duration is None else lo + round(duration * 1e9)
-    return lo, hi, count
+    return first, lo, hi, count
+
+
+def _read_window(src, lo: int | None, hi: int | None, first: int) -> Iterator[tuple[str, bytes, int, int]]:
+    """``read_recording`` of the window [lo, hi), preceded by each rig's last config logged
+    before ``lo`` (log time: the window's first message's); nothing for an empty window."""
+    carried: dict[str, tuple[bytes, int]] = {}
+    if lo is not None and lo > first:
+        configs = [t for t in recording_topics(src) if (rt := rig_topic(t)) is not None and rt[1] == "config"]
+        if configs:
+            for key, payload, _, pub_ns in read_recording(src, topics=configs, end_ns=lo):
+                carried[key] = (payload, pub_ns)
+    window = read_recording(src, start_ns=lo, end_ns=hi)
+    head = next(window, None)
+    if head is None:
+        return
+    for key, (payload, pub_ns) in carried.items():
+        yield key, payload, head[2], pub_ns
+    yield head
+    yield from window
 
 
 def iter_window(src, *, keys: Iterable[str] | None = None, start: float | None = None,
                 duration: float | None = None) -> Iterator[tuple[str, bytes, int]]:
     """Messages ``(key, payload, log_time_ns)`` of the window, in log-time order."""
     match = KeyFilter(keys)
-    lo, hi, count = _window(src, start, duration)
+    first, lo, hi, count = _window(src, start, duration)
     if count == 0:
         return
-    for key, payload, log_ns, _ in read_recording(src, start_ns=lo, end_ns=hi):
+    for key, payload, log_ns, _ in _read_window(src, lo, hi, first):
         if match(key):
             yield key, payload, log_ns
 
@@ -184,7 +205,7 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
     """
     if not rate >= 0:
         raise ValueError(f"rate {rate!r} must be >= 0")
-    lo, hi, count = _window(src, start, duration)
+    first, lo, hi, count = _window(src, start, duration)
     stop = stop_event if stop_event is not None else threading.Event()
     match = KeyFilter(keys)
     stats = ReplayStats()
@@ -206,7 +227,7 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
         while not stop.is_set() and count:
             first_ns = last_ns = None
             n = 0
-            for key, payload, log_ns, _ in read_recording(src, start_ns=lo, end_ns=hi):
+            for key, payload, log_ns, _ in _read_window(src, lo, hi, first):
                 if first_ns is None:
                     first_ns = log_ns
                 last_ns = log_ns

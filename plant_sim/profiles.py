@@ -127,11 +127,17 @@ class FromFile(Profile):
     @classmethod
     def load(cls, path: str | Path) -> "FromFile":
         with open(path, newline="") as fh:
-            rows = list(csv.DictReader(fh))
-        if not rows or "t" not in rows[0] or "ug" not in rows[0]:
+            reader = csv.DictReader(fh)
+            rows = [(reader.line_num, r) for r in reader]
+        if not rows or "t" not in rows[0][1] or "ug" not in rows[0][1]:
             raise ValueError(f"{path}: a profile file needs a header with columns t,ug")
-        t = np.array([float(r["t"]) for r in rows])
-        u = np.array([float(r["ug"]) for r in rows])
+        t, u = np.empty(len(rows)), np.empty(len(rows))
+        for i, (line, r) in enumerate(rows):
+            try:
+                t[i], u[i] = float(r["t"]), float(r["ug"])
+            except (TypeError, ValueError):  # a short row gives None (TypeError), text ValueError
+                raise ValueError(f"{path}: line {line}: t and ug must be numbers, got "
+                                 f"t={r['t']!r}, ug={r['ug']!r}") from None
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(u))):
             raise ValueError(f"{path}: non-finite t or ug")
         if np.any(np.diff(t) <= 0):

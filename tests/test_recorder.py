@@ -90,6 +90,20 @@ def test_rotation_by_age_and_never_an_empty_part(tmp_path):
     assert sum(len(list(read_recording(p))) for p in r.files) == 30
 
 
+def test_a_quiet_bus_after_a_rotation_makes_no_empty_part(tmp_path):
+    # the live recorder ticks on while the bus is quiet: the old part is closed when due (complete
+    # at once), but the next one is opened only by the next message
+    r, opened = _rotation(tmp_path, rotate_ns=NS)
+    r.write("hydro/rig/a/sample", sample_bytes(0, 0.0), NS, NS)
+    for k in range(2, 20):  # 18 s of ticks, nothing received
+        r.tick(k * NS)
+    assert len(r.files) == 1 and len(list(read_recording(r.files[0]))) == 1  # closed: readable now
+    r.write("hydro/rig/a/sample", sample_bytes(1, 0.01), 20 * NS, 20 * NS)
+    r.tick(20 * NS)
+    r.close()
+    assert opened == r.files and [len(list(read_recording(p))) for p in r.files] == [1, 1]
+
+
 def test_directory_output_uses_namespace_and_time_never_a_rig_id(tmp_path):
     r, _ = _rotation(tmp_path, out=tmp_path)
     r.write("hydro/rig/evil_rig/sample", sample_bytes(0, 0.0), 1, 1)

@@ -1,13 +1,12 @@
 """Sharding a plant over several monitors by a rig-id key expression (``hydromon monitor --rigs``)."""
 
 import threading
-import time
 
 import pytest
 
 from hydromon.bus import free_tcp_endpoint, open_session
 from hydromon.fleetfile import default_fleet
-from hydromon.monitornode import rig_pattern, run_monitor
+from hydromon.monitornode import MonitorCore, rig_pattern, run_monitor
 from hydromon.simnode import run_sim
 from helpers import health_seqs, wait_for, window_end  # noqa: F401
 
@@ -28,22 +27,25 @@ def test_two_monitors_split_the_rigs_between_them():
     seconds = 3.0
     with open_session("peer", listen=[ep]) as sim_s, open_session("peer", connect=[ep]) as a_s, \
             open_session("peer", connect=[ep]) as b_s:
-        stop, cores = threading.Event(), {}
         shards = {"a": (a_s, "table4-g1"), "b": (b_s, "table4-g$*")}  # g1 alone; every table4-g rig
-        threads = [threading.Thread(target=lambda n=n, s=s, p=p: cores.update({n: run_monitor(
-            s, stop_event=stop, node_name=f"shard-{n}", rigs=p)}), daemon=True) for n, (s, p) in shards.items()]
+        stop, cores = threading.Event(), {n: MonitorCore() for n in shards}
+        threads = [threading.Thread(target=run_monitor, args=(s,), daemon=True, kwargs={
+            "stop_event": stop, "node_name": f"shard-{n}", "rigs": p, "core": cores[n]}) for n, (s, p) in shards.items()]
         for t in threads:
             t.start()
+        n = int(seconds * 100)
         try:
-            for n in shards:
-                wait_for(lambda n=n: any(r.ok is not None for r in sim_s.liveliness().get(
-                    f"hydro/monitor/shard-{n}", timeout=1.0)), 60, f"monitor {n}")
+            for name in shards:
+                wait_for(lambda name=name: any(r.ok is not None for r in sim_s.liveliness().get(
+                    f"hydro/monitor/shard-{name}", timeout=1.0)), 60, f"monitor {name}")
             run_sim(sim_s, spec, rate=0, duration=seconds)
-            time.sleep(1.0)
+            wait_for(lambda: cores["a"].counters.accepted >= n and cores["b"].counters.accepted >= 5 * n, 60,
+                     "both monitors to take every sample of their rigs")
         finally:
             stop.set()
             for t in threads:
                 t.join(30)
+    assert not any(t.is_alive() for t in threads)
     assert sorted(cores["a"].rigs) == ["table4-g1"]
     assert sorted(cores["b"].rigs) == [f"table4-g{i}" for i in range(1, 6)]
-    assert cores["a"].counters.accepted == int(seconds * 100)
+    assert cores["a"].counters.accepted == n and cores["b"].counters.accepted == 5 * n

@@ -1,0 +1,399 @@
+"""Command-line options that the other files leave alone: ``monitor --ranges``, ``sim --to-mcap``,
+``record --rotate-mb/--rotate-s``, ``replay --start/--duration`` and the ``file:`` profile.
+
+In-process ``hydromon.cli.main(argv)`` calls throughout; the bus ones on loopback with explicit
+endpoints (multicast scouting is off by default in hydromon.bus), bounded waits.
+"""
+
+from __future__ import annotations
+
+import threading
+import types
+from pathlib import Path
+
+import numpy as np
+import orjson
+import pytest
+
+from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.cli import main
+from hydromon.fleetfile import FleetSpec, RigSpec
+from hydromon.mcap_io import read_recording, read_rig_config, read_samples
+from helpers import health_seqs, wait_for
+from monitor.ranges import Ranges
+from plant_sim.params import RigConfig
+from plant_sim.profiles import FromFile, parse_profile
+
+NS = "hydro"
+
+
+# -- monitor --ranges -----------------------------------------------------------------------------
+
+def _run_monitor_cli(monkeypatch, extra: list[str], rig: str = "cli-r1") -> dict:
+    """Run ``hydromon monitor`` in this (main) thread while a peer publishes a short simulated
+    run of one rig; return the rig's latest health (queried from the monitor)."""
+    import hydromon.commands.monitor as monitor_cmd
+
+    # the command's stop event is set by SIGINT/SIGTERM; here the feeding thread sets it
+    stop = threading.Event()
+    monkeypatch.setattr(monitor_cmd, "threading", types.SimpleNamespace(Event=lambda: stop))
+    ep = free_tcp_endpoint()
+    node = f"opt-{rig}"
+    got: dict = {}
+    errors: list[BaseException] = []
+
+    def feed():
+        try:
+            with open_session("peer", connect=[ep]) as s:
+                wait_for(lambda: any(r.ok is not None
+                                     for r in s.liveliness().get(f"{NS}/monitor/{node}", timeout=1.0)),
+                         60, "the monitor's liveliness token", alive=lambda: stop.is_set() and _stopped())
+                from hydromon.simnode import run_sim
+
+                run_sim(s, FleetSpec(rigs=[RigSpec(id=rig, severity=0.2)]), rate=0, duration=0.5)
+
+                def latest():
+                    for r in s.get(f"{NS}/rig/{rig}/health", timeout=1.0):
+                        if r.ok is not None:
+                            got.update(orjson.loads(r.ok.payload.to_bytes()))
+                    return got.get("seq") == health_seqs(rig, 50)[-1]  # the health after the 50 samples
+                wait_for(latest, 30, f"{rig}'s last health")
+        except BaseException as exc:  # reported in the main thread
+            errors.append(exc)
+        finally:
+            stop.set()
+
+    def _stopped():
+        raise AssertionError("the monitor stopped early")
+
+    th = threading.Thread(target=feed, daemon=True)
+    th.start()
+    try:
+        code = main(["monitor", "--listen", ep, "--node", node, "--duration", "90", *extra])
+    finally:
+        stop.set()
+        th.join(30)
+    assert not th.is_alive()
+    if errors:
+        raise errors[0]
+    assert code == 0
+    return got
+
+
+@pytest.mark.network
+@pytest.mark.timeout(120)
+def test_monitor_ranges_option_chooses_what_the_valve_is_graded_on(monkeypatch, tmp_path):
+    # monitor/data/default_ranges.json grades the valve on its static gain K_sv,
+    # monitor/data/table3.json (--ranges paper) on K_sv omega_sv^2 as the paper prints it
+    assert "K_sv" in Ranges.default().params and "K_sv_omega_sv2" not in Ranges.default().params
+    assert "K_sv_omega_sv2" in Ranges.paper().params and "K_sv" not in Ranges.paper().params
+    custom = tmp_path / "ranges.json"  # a file: two of the paper's parameters only
+    paper = Ranges.paper()
+    Ranges(params={k: paper.params[k] for k in ("f_c", "C_ip")}, source="test").save(custom)
+
+    graded = {}
+    for label, extra in (("none", []), ("default", ["--ranges", "default"]), ("paper", ["--ranges", "paper"]),
+                         ("file", ["--ranges", str(custom)])):
+        h = _run_monitor_cli(monkeypatch, extra, rig=f"r-{label}")
+        graded[label] = set(h["param_grades"])
+    assert graded["none"] == graded["default"] == set(Ranges.default().params)
+    assert "K_sv" in graded["default"] and "K_sv_omega_sv2" not in graded["default"]
+    assert graded["paper"] == set(Ranges.paper().params)
+    assert "K_sv_omega_sv2" in graded["paper"] and "K_sv" not in graded["paper"]
+    assert graded["file"] == {"f_c", "C_ip"}
+
+
+def test_monitor_ranges_option_rejects_a_bad_file_before_the_bus(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"params": {"nope": {}}}')
+    assert main(["monitor", "--ranges", str(bad), "--listen", free_tcp_endpoint(), "--duration", "0.1"]) == 2
+    assert str(bad) in capsys.readouterr().err
+
+
+# -- sim --to-mcap --------------------------------------------------------------------------------
+
+def test_sim_to_mcap_reads_back_with_every_sample_and_the_configs(tmp_path, capsys):
+    out = tmp_path / "run.mcap"
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text('[config]\np_s = 12e6\n[[rigs]]\nid = "a"\nseverity = 0.1\n'
+                     '[[rigs]]\nid = "b"\ntable4 = 3\n')
+    assert main(["sim", "--fleet", str(fleet), "--duration", "0.3", "--to-mcap", str(out)]) == 0
+    assert f"62 messages of 2 rig(s) -> {out}" in capsys.readouterr().err
+    for rig in ("a", "b"):
+        rid, data, seq = read_samples(out, rig=rig)
+        assert rid == rig and data.shape == (30, 6)
+        assert seq.tolist() == list(range(30))
+        np.testing.assert_allclose(data[:, 0], np.arange(30) * 0.01, atol=1e-12)
+        assert read_rig_config(out, rig) == RigConfig(p_s=12e6)
+    keys = [k for k, *_ in read_recording(out)]
+    assert keys[:2] == ["hydro/rig/a/config", "hydro/rig/b/config"] and len(keys) == 62
+    # --namespace goes into the keys; --duration is required
+    assert main(["sim", "--severity", "0.2", "--duration", "0.05", "--namespace", "site2",
+                 "--to-mcap", str(tmp_path / "ns.mcap")]) == 0
+    assert {k for k, *_ in read_recording(tmp_path / "ns.mcap")} == {"site2/rig/rig-0000/config",
+                                                                     "site2/rig/rig-0000/sample"}
+    assert main(["sim", "--to-mcap", str(tmp_path / "x.mcap")]) == 2
+    assert "--duration" in capsys.readouterr().err
+
+
+# -- record --rotate-mb / --rotate-s --------------------------------------------------------------
+
+def _record_while_publishing(tmp_path, capsys, extra: list[str], n: int, pause_every: int = 0,
+                             pause_s: float = 0.0) -> list:
+    """``hydromon record --out DIR/rec.mcap`` in this thread while a peer puts ``n`` samples of
+    one rig (and its config); the feeder stops the recorder once all of them are on disk.
+    Returns the files the command printed, in order."""
+    import hydromon.commands.record as record_cmd
+    from hydromon.contract import config_key, sample_key
+
+    stop = threading.Event()
+    ep = free_tcp_endpoint()
+    out = tmp_path / "rec.mcap"
+    errors: list[BaseException] = []
+
+    def feed():
+        try:
+            with open_session("peer", connect=[ep]) as s:
+                pub = s.declare_publisher(sample_key("rot"))
+                wait_for(lambda: pub.matching_status.matching, 60, "the recorder's subscription")
+                s.put(config_key("rot"), orjson.dumps(RigConfig(p_s=11e6).model_dump(mode="json")))
+                for i in range(n):
+                    pub.put(orjson.dumps({"seq": i, "t": i * 0.01, "ug": 2.0, "x1": 0.001 * i, "x3": 6e6,
+                                          "x4": 5e6, "x5": 1e-5}))
+                    if pause_every and (i + 1) % pause_every == 0:
+                        stop.wait(pause_s)
+                # the recorder has them all once its message count says so: poll its files
+                wait_for(lambda: _on_disk(out) >= n + 1, 30, "every message on disk")
+        except BaseException as exc:
+            errors.append(exc)
+        finally:
+            stop.set()
+
+    monkeypatch = pytest.MonkeyPatch()
+    monkeypatch.setattr(record_cmd, "threading", types.SimpleNamespace(Event=lambda: stop))
+    th = threading.Thread(target=feed, daemon=True)
+    th.start()
+    try:
+        code = main(["record", "--out", str(out), "--listen", ep, "--duration", "90", *extra])
+    finally:
+        stop.set()
+        th.join(30)
+        monkeypatch.undo()
+    assert not th.is_alive()
+    if errors:
+        raise errors[0]
+    assert code == 0
+    files = [Path(p) for p in capsys.readouterr().out.split()]
+    assert sorted(files) == sorted(tmp_path.glob("rec*.mcap"))
+    return files
+
+
+def _on_disk(out) -> int:
+    """Messages readable now from the recorder's files (the live one being written too)."""
+    import io
+
+    from hydromon.mcap_recover import recover
+
+    total = 0
+    for p in out.parent.glob("rec*.mcap"):
+        total += recover(io.BytesIO(p.read_bytes()), io.BytesIO()).messages
+    return total
+
+
+def _check_parts(files: list) -> list[int]:
+    """Every part is a complete recording with the rig's config; the seqs over all parts are
+    0.. without a loss or a repeat. Returns the sample count per part."""
+    seqs, counts = [], []
+    for f in files:
+        assert read_rig_config(f, "rot") == RigConfig(p_s=11e6)
+        _, _, seq = read_samples(f, rig="rot")  # a complete file: read_samples would raise otherwise
+        counts.append(len(seq))
+        seqs += seq.tolist()
+    assert seqs == list(range(len(seqs)))
+    return counts
+
+
+@pytest.mark.network
+@pytest.mark.timeout(120)
+def test_record_rotate_mb_splits_the_run_into_complete_files(tmp_path, capsys):
+    # a file grows when its chunk is flushed (~0.5 s after the chunk's first message): four
+    # bursts of 40 samples 0.7 s apart against --rotate-mb 0.004 (4000 B). The first file with
+    # its schemas, channels and one burst is ~3.1 kB, each further burst ~1.5 kB: so the first
+    # file takes two bursts (or more, if flushes are late), and the run needs more than one file
+    files = _record_while_publishing(tmp_path, capsys, ["--rotate-mb", "0.004"], n=160, pause_every=40,
+                                     pause_s=0.7)
+    assert len(files) >= 2
+    assert all(f.stat().st_size >= 4000 for f in files[:-1])  # closed once it reached the size
+    counts = _check_parts(files)  # every part holds samples: none is empty
+    assert sum(counts) == 160 and counts[0] >= 80  # MB, not kB: one burst did not fill a file
+
+
+@pytest.mark.network
+@pytest.mark.timeout(120)
+def test_record_rotate_s_splits_the_run_into_complete_files(tmp_path, capsys):
+    # bursts of 20 samples 0.5 s apart against --rotate-s 0.1: a file never outlives a pause,
+    # and the quiet bus at the end leaves no empty part
+    files = _record_while_publishing(tmp_path, capsys, ["--rotate-s", "0.1"], n=100, pause_every=20,
+                                     pause_s=0.5)
+    assert len(files) >= 3
+    counts = _check_parts(files)
+    assert sum(counts) == 100
+    assert main(["record", "--rotate-mb", "0", "--out", str(tmp_path / "z.mcap")]) == 2
+
+
+# -- replay --start / --duration ------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def two_rigs(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rep") / "two.mcap"
+    assert main(["sim", "--rigs", "2", "--duration", "3", "--to-mcap", str(path)]) == 0
+    return path
+
+
+def _seqs(jsonl: bytes) -> dict[str, list[int]]:
+    out: dict[str, list[int]] = {}
+    for line in jsonl.splitlines():
+        d = orjson.loads(line)
+        out.setdefault(d["key"].split("/")[2], []).append(d["health"]["seq"])
+    return out
+
+
+def test_replay_direct_start_and_duration_grade_the_window_only(two_rigs, tmp_path, capsys):
+    whole, part = tmp_path / "whole.jsonl", tmp_path / "part.jsonl"
+    assert main(["replay", str(two_rigs), "--direct", "--out", str(whole)]) == 0
+    assert "600 samples of 2 rig(s)" in capsys.readouterr().err
+    # 1.0 s after the first message (the configs at t = 0), 0.5 s long: samples t in [1.0, 1.5)
+    assert main(["replay", str(two_rigs), "--direct", "--out", str(part), "--start", "1.0",
+                 "--duration", "0.5"]) == 0
+    assert "100 samples of 2 rig(s)" in capsys.readouterr().err
+    whole_seqs, part_seqs = _seqs(whole.read_bytes()), _seqs(part.read_bytes())
+    assert set(part_seqs) == set(whole_seqs) == {"rig-0000", "rig-0001"}
+    for rig, seqs in part_seqs.items():
+        assert seqs and all(100 <= s < 150 for s in seqs)
+        assert seqs == [s for s in whole_seqs[rig] if 100 <= s < 150]  # same phase of health as whole
+    # --start alone: to the end; --duration alone: from the start
+    assert main(["replay", str(two_rigs), "--direct", "--out", str(part), "--start", "2.5"]) == 0
+    assert "100 samples of 2 rig(s)" in capsys.readouterr().err
+    assert main(["replay", str(two_rigs), "--direct", "--out", str(part), "--duration", "0.2"]) == 0
+    assert "40 samples of 2 rig(s)" in capsys.readouterr().err
+    assert main(["replay", str(two_rigs), "--direct", "--start", "-1"]) == 2
+    assert "start" in capsys.readouterr().err
+
+
+def test_a_replay_window_carries_each_rigs_config_from_before_it(tmp_path, capsys):
+    # the configs are recorded once, at t = 0: a window starting later used to leave them out,
+    # and the monitor graded the rig with the default constants (p_s 10 MPa, not 14)
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text('[config]\np_s = 14e6\n[[rigs]]\nid = "a"\nseverity = 0.1\n')
+    rec = tmp_path / "cfg.mcap"
+    assert main(["sim", "--fleet", str(fleet), "--duration", "1.5", "--to-mcap", str(rec)]) == 0
+    from hydromon.replay import iter_window
+
+    msgs = list(iter_window(rec, start=1.0, duration=0.2))
+    assert [k for k, _, _ in msgs] == ["hydro/rig/a/config"] + ["hydro/rig/a/sample"] * 20
+    assert RigConfig.model_validate_json(msgs[0][1]).p_s == 14e6
+    assert msgs[0][2] == msgs[1][2] == 1_000_000_000  # stamped with the window's first message
+    assert [k for k, _, _ in iter_window(rec, keys=["hydro/rig/*/sample"], start=1.0, duration=0.2)] == \
+        ["hydro/rig/a/sample"] * 20  # --keys still filters it
+    assert list(iter_window(rec, start=5.0)) == []  # an empty window stays empty
+    from hydromon.replay import health_jsonl, replay_direct
+
+    health, core = replay_direct(rec, start=1.0)
+    assert core.configs["a"].p_s == 14e6 and core.counters.configs == 1
+    out = tmp_path / "part.jsonl"
+    assert main(["replay", str(rec), "--direct", "--out", str(out), "--start", "1.0"]) == 0
+    assert out.read_bytes() == b"".join(health_jsonl(health)) and health
+    capsys.readouterr()
+
+
+@pytest.mark.network
+@pytest.mark.timeout(120)
+def test_replay_on_the_bus_publishes_the_window_only(two_rigs):
+    ep = free_tcp_endpoint()
+    got: list[tuple[str, int]] = []
+    lock = threading.Lock()
+
+    def on_sample(s):
+        with lock:
+            got.append((str(s.key_expr), orjson.loads(s.payload.to_bytes()).get("seq", -1)))
+
+    with open_session("peer", listen=[ep]) as sess:
+        sub = sess.declare_subscriber(f"{NS}/rig/*/*", on_sample)
+        try:
+            assert main(["replay", str(two_rigs), "--connect", ep, "--rate", "0", "--quiet", "--wait", "30",
+                         "--keys", f"{NS}/rig/rig-0001/*", "--start", "2.0", "--duration", "0.25"]) == 0
+            wait_for(lambda: len(got) >= 26, 20, "the config and 25 replayed samples")
+        finally:
+            sub.undeclare()
+    # the rig's config (recorded at t = 0, before the window) goes first
+    assert got == [(f"{NS}/rig/rig-0001/config", -1)] + [(f"{NS}/rig/rig-0001/sample", s) for s in range(200, 225)]
+
+
+# -- the file: profile ----------------------------------------------------------------------------
+
+def test_file_profile_interpolates_and_holds_beyond_its_ends(tmp_path):
+    p = tmp_path / "u.csv"
+    p.write_text("t,ug\n0.5,1.0\n1.5,3.0\n2.0,-1.0\n")
+    prof = parse_profile(f"file:path={p}")
+    assert isinstance(prof, FromFile) and prof.spec() == f"file:path={p}"
+    t = np.array([0.0, 0.5, 1.0, 1.25, 1.5, 1.75, 2.0, 9.0])
+    np.testing.assert_allclose(prof(t), [1.0, 1.0, 2.0, 2.5, 3.0, 1.0, -1.0, -1.0])
+    assert float(prof(1.0)) == 2.0  # a scalar time too
+    # extra columns are ignored; their order does not matter
+    q = tmp_path / "v.csv"
+    q.write_text("ug,note,t\n2.0,a,0\n4.0,b,1\n")
+    np.testing.assert_allclose(parse_profile(f"file:path={q}")([0.25]), [2.5])
+
+
+@pytest.mark.parametrize("text, match", [
+    ("time,ug\n0,1\n", "columns t,ug"),
+    ("t,u\n0,1\n", "columns t,ug"),
+    ("", "columns t,ug"),
+    ("t,ug\n0,1\n1,2\n1,3\n", "t must increase strictly"),
+    ("t,ug\n0,1\n2,2\n1,3\n", "t must increase strictly"),
+    ("t,ug\n0,1\n1,nan\n", "non-finite"),
+    ("t,ug\n0,1\n1,abc\n", r"u\.csv: line 3: .*'abc'"),
+    ("t,ug\n0,1\n1,\n", r"u\.csv: line 3"),
+    ("t,ug\n0,1\n1\n", r"u\.csv: line 3"),  # a short row: was a TypeError (float(None))
+])
+def test_file_profile_rejects_a_bad_file_naming_it(tmp_path, text, match):
+    p = tmp_path / "u.csv"
+    p.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        parse_profile(f"file:path={p}")
+
+
+def test_file_profile_missing_file_and_missing_path(tmp_path):
+    with pytest.raises(FileNotFoundError, match="nope.csv"):
+        parse_profile(f"file:path={tmp_path / 'nope.csv'}")
+    with pytest.raises(ValueError, match="needs path=FILE"):
+        parse_profile("file")
+
+
+def test_sim_profile_file_drives_the_command_voltage(tmp_path, capsys):
+    prof = tmp_path / "u.csv"
+    prof.write_text("t,ug\n0.05,1.0\n0.15,3.0\n")
+    out = tmp_path / "run.csv"
+    assert main(["sim", "--severity", "0.3", "--profile", f"file:path={prof}", "--duration", "0.25",
+                 "--to-csv", str(out)]) == 0
+    data = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert data.shape == (25, 6)
+    expect = np.interp(data[:, 0], [0.05, 0.15], [1.0, 3.0])  # held at 1 V before 0.05 s, 3 V after 0.15 s
+    np.testing.assert_allclose(data[:, 1], expect, atol=1e-12)
+    # the same through a fleet file, into an MCAP
+    fleet = tmp_path / "fleet.toml"
+    fleet.write_text(f'[[rigs]]\nid = "f"\nseverity = 0.3\nprofile = "file:path={prof}"\n')
+    assert main(["sim", "--fleet", str(fleet), "--duration", "0.25", "--to-mcap", str(tmp_path / "f.mcap")]) == 0
+    _, mdata, _ = read_samples(tmp_path / "f.mcap", rig="f")
+    np.testing.assert_allclose(mdata[:, 1], expect, atol=1e-12)
+    capsys.readouterr()
+    # errors are clear, exit 2, no traceback
+    bad = tmp_path / "bad.csv"
+    for text, what in (("t,ug\n0,1\n0,2\n", "t must increase strictly"), ("t,ug\n0,1\n1\n", "line 3")):
+        bad.write_text(text)
+        assert main(["sim", "--profile", f"file:path={bad}", "--duration", "0.1", "--to-csv", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "hydromon sim: error:" in err and what in err and str(bad) in err
+    assert main(["sim", "--profile", f"file:path={tmp_path / 'nope.csv'}", "--duration", "0.1",
+                 "--to-csv", str(out)]) == 2
+    assert "nope.csv" in capsys.readouterr().err
