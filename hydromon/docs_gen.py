@@ -51,7 +51,10 @@ _RECORDINGS = """\
 - chunks are zstd-compressed and written out at most about a second after their first
   message, so a recorder killed without warning loses at most its last second:
   `hydromon recover FILE` rewrites such a file (no summary, a partial last chunk) into a
-  valid one.
+  valid one;
+- readers check every chunk's CRC and the summary's: a damaged chunk is an error naming
+  the file and the chunk, never other bytes; `hydromon recover` skips such a chunk (and
+  reports it with its messages) and keeps every other.
 """
 
 

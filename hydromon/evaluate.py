@@ -1,9 +1,13 @@
 """Grade one recording: a CSV (t,ug,x1,x3,x4,x5 in SI) or an MCAP file (the CSV/MCAP edge).
 
-``load_recording`` reads and validates (header, finite numbers, strictly increasing t,
-sampling at the rig's rate within 1 %; a gap of whole sample periods is allowed and, as on
-the bus, restarts the filters; an MCAP's invalid samples are skipped and counted),
-``evaluate`` runs the monitor pipeline
+``load_recording`` reads and validates. A CSV: header, finite numbers, strictly increasing t,
+sampling at the rig's rate within 1 % (a gap of whole sample periods is allowed and, as on
+the bus, restarts the filters). An MCAP is taken as the live monitor takes it
+(hydromon/monitorcore.py): by ``seq``, not by time stamp (time stamps off the seq's grid are
+counted, not refused); invalid samples, duplicate and out-of-order seqs are skipped and
+counted; a seq jump is a gap; a rig config change restarts the estimates, so only the
+samples after the last change are evaluated (the skipped ones are counted); a restart
+(seq back to 0) is refused with a hint. ``evaluate`` runs the monitor pipeline
 over the samples and returns an :class:`Evaluation`; ``to_json`` and ``render`` present it
 (DESIGN.md section 6: ``{"grade", "level", "confidence", "status", "params", "std_errors"}``).
 """
@@ -31,6 +35,9 @@ __all__ = ["CSV_COLUMNS", "Recording", "Evaluation", "read_csv", "load_recording
 
 CSV_COLUMNS = ("t", "ug", "x1", "x3", "x4", "x5")
 RATE_TOL = 0.01  # allowed relative deviation of each sample interval from 1 / sample_rate
+# the median interval further than this from one period [relative] means another rate or unit
+# (a quarter, not a half: 200 Hz sits at half a period, where rounding goes either way)
+TYPICAL_TOL = 0.25
 
 PARAM_UNITS = {
     "m": "kg", "B_fv": "N s/m", "f_c": "N", "K_t": "N/m", "inv_beta_e": "1/Pa",
@@ -53,6 +60,17 @@ class Recording:
     restarts: tuple[int, ...] = ()  # indices of samples that follow a gap
     missing: int = 0  # samples missing in those gaps
     rejected: int = 0  # invalid samples skipped (MCAP)
+    duplicate: int = 0  # samples dropped for a seq equal to the last one taken (MCAP)
+    out_of_order: int = 0  # samples dropped for a seq below the last one taken (MCAP)
+    jitter: int = 0  # intervals whose time stamps are off their seq step by > RATE_TOL (MCAP)
+    jitter_max: float = 0.0  # the largest disagreement of those intervals [s]
+    config_changes: int = 0  # rig config changes in the record (MCAP)
+    skipped: int = 0  # samples before the last config change, not evaluated
+
+    @property
+    def duration(self) -> float:
+        """The span the samples cover [s]: first to last sample plus one period, gaps included."""
+        return (len(self.samples) + self.missing) / self.config.sample_rate
 
 
 @dataclass(frozen=True)
@@ -81,17 +99,19 @@ def read_csv(src, name: str = "<csv>") -> np.ndarray:
     """Parse a CSV with header columns t,ug,x1,x3,x4,x5 (any order, extra columns ignored).
 
     src is a path or a text stream. Returns (N, 6) float64 in CSV_COLUMNS order. Raises
-    ValueError naming the line of the first bad value (header = line 1).
+    ValueError naming the line of the first bad value (header = line 1); a missing file raises
+    FileNotFoundError naming it. A UTF-8 byte order mark before the header is allowed.
     """
     if isinstance(src, (str, Path)):
-        name = str(src)
-        with open(src, newline="") as f:
-            return read_csv(f, name)
+        return read_csv(io.StringIO(_read_text(Path(src)), newline=""), str(src))
     reader = csv.reader(src)
     try:
-        header = [h.strip() for h in next(reader)]
+        first = next(reader)
     except StopIteration:
         raise ValueError(f"{name}: empty file; expected a header {','.join(CSV_COLUMNS)}") from None
+    if first:  # Excel's "CSV UTF-8" starts with a byte order mark
+        first[0] = first[0].removeprefix("\ufeff")
+    header = [h.strip() for h in first]
     missing = [c for c in CSV_COLUMNS if c not in header]
     if missing:
         raise ValueError(f"{name} line 1: header {','.join(header)!r} lacks column(s) "
@@ -125,10 +145,37 @@ def read_csv(src, name: str = "<csv>") -> np.ndarray:
     return np.array(rows, dtype=np.float64)
 
 
+def _read_text(path: Path) -> str:
+    """A CSV file's text; every error names the file (and the line of a byte that is not UTF-8)."""
+    name = str(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{name}: no such file") from None
+    except OSError as exc:
+        raise ValueError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        return data.decode("utf-8")  # not utf-8-sig: its error offsets leave out the mark; read_csv drops it
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ValueError(f"{name} line {line}: byte {data[exc.start]:#04x} is not UTF-8 text; expected a CSV "
+                         f"with the header {','.join(CSV_COLUMNS)} (is it a binary file?)") from None
+
+
+def _rate_hint(typical: float, h: float, sample_rate: float) -> str:
+    """What a typical interval ``typical`` [s] other than the period ``h`` [s] most likely means."""
+    for factor, unit in ((1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds")):
+        if abs(typical / (factor * h) - 1) <= RATE_TOL:
+            return f"t looks like {unit}; give t in seconds (SI)"
+    return f"the file looks sampled at {1 / typical:.4g} Hz, not {sample_rate:g} Hz (or t is not in seconds)"
+
+
 def check_sampling(t: np.ndarray, sample_rate: float, where=lambda i: f"sample {i}") -> tuple[list[int], int]:
-    """t [s] must increase strictly, every interval within RATE_TOL of a whole number of
-    sample periods 1/sample_rate [Hz]. Returns the indices of samples after a gap (an
-    interval of 2 periods or more) and the number of samples missing in the gaps.
+    """t [s] must increase strictly, the median interval must be one sample period
+    1/sample_rate [Hz] (within TYPICAL_TOL), and every interval within RATE_TOL of a whole
+    number of periods.
+    Returns the indices of samples after a gap (an interval of 2 periods or more) and the
+    number of samples missing in the gaps.
 
     ``where(i)`` names sample i in the error (e.g. its CSV line).
     """
@@ -139,7 +186,18 @@ def check_sampling(t: np.ndarray, sample_rate: float, where=lambda i: f"sample {
         i = int(bad[0]) + 1
         raise ValueError(f"{where(i)}: t = {float(t[i])!r} s does not increase strictly "
                          f"(previous {float(t[i - 1])!r} s)")
+    if not dt.size:
+        return [], 0
     periods = np.rint(dt / h)
+    typical = float(np.median(dt))
+    if abs(typical / h - 1) > TYPICAL_TOL:
+        # another rate or unit: every interval may still be a whole number of periods (t in ms:
+        # 1000 each), which would pass below as a record of nothing but gaps
+        off = np.flatnonzero(periods != 1)
+        i = int(off[0]) + 1 if off.size else 1
+        raise ValueError(f"{where(i)}: t = {float(t[i])!r} s is {float(dt[i - 1])!r} s after the previous sample, "
+                         f"and the median interval is {typical:.6g} s, but the rig samples every {h!r} s "
+                         f"({sample_rate:g} Hz): {_rate_hint(typical, h, sample_rate)}")
     bad = np.flatnonzero(np.abs(dt - periods * h) > RATE_TOL * h)
     if bad.size:
         i = int(bad[0]) + 1
@@ -149,24 +207,80 @@ def check_sampling(t: np.ndarray, sample_rate: float, where=lambda i: f"sample {
     return [int(i) + 1 for i in gaps], int(np.sum(periods[gaps] - 1))
 
 
-def _seq_gaps(seq: np.ndarray, name: str) -> tuple[list[int], int]:
-    """Samples after a gap in the rig's sequence numbers, and how many are missing."""
-    d = np.diff(seq)
-    back = np.flatnonzero(d <= 0)
+def _seq_taken(seq: np.ndarray, t: np.ndarray, name: str, first: int = 0) -> tuple[np.ndarray, int, int]:
+    """``(taken, duplicate, out_of_order)``: which samples the live monitor takes
+    (hydromon/monitorcore.py), those whose seq is above every seq before it, and how many it
+    drops: a seq equal to the last taken is a duplicate, a lower one out of order. Seq 0 after
+    a higher seq is the rig restarting: refused (ValueError), since one evaluation grades one
+    run. ``first`` is sample 0's index in the file (for the error)."""
+    last = np.maximum.accumulate(seq)  # the last seq taken is the highest so far: drops are below it
+    before = np.r_[-1, last[:-1]]
+    back = np.flatnonzero((seq == 0) & (before > 0))
     if back.size:
-        i = int(back[0]) + 1
-        raise ValueError(f"{name}: seq goes from {int(seq[i - 1])} back to {int(seq[i])} at sample {i} "
-                         "(the rig restarted): evaluate one run at a time, or replay the recording "
-                         "(hydromon replay --direct), which handles restarts")
+        i = int(back[0])
+        raise ValueError(f"{name}: seq goes from {int(before[i])} back to 0 at sample {first + i} "
+                         f"(t = {float(t[i])!r} s; the rig restarted): evaluate one run at a time, or replay "
+                         "the recording (hydromon replay --direct), which handles restarts")
+    return seq > before, int(np.sum(seq == before)), int(np.sum(seq < before))
+
+
+def _seq_gaps(seq: np.ndarray) -> tuple[list[int], int]:
+    """Samples after a gap in the rig's (increasing) sequence numbers, and how many are missing."""
+    d = np.diff(seq)
     gaps = np.flatnonzero(d > 1)
     return [int(i) + 1 for i in gaps], int(np.sum(d[gaps] - 1))
+
+
+def _time_jitter(t: np.ndarray, seq: np.ndarray, sample_rate: float) -> tuple[int, float]:
+    """Intervals whose time stamps disagree with their seq step by more than RATE_TOL of a
+    period, and the largest of those disagreements [s] (0 if none). The monitor goes by seq and
+    never reads t, so this is reported, not refused."""
+    off = np.abs(np.diff(t) - np.diff(seq) / sample_rate)
+    bad = off[off > RATE_TOL / sample_rate]
+    return int(bad.size), float(bad.max()) if bad.size else 0.0
+
+
+def _after_last_change(messages: list[tuple[int, RigConfig]], stored: list[RigConfig], n: int,
+                       name: str) -> tuple[RigConfig, int, int]:
+    """``(config, first, changes)``: the rig constants of the samples from index ``first`` on,
+    after the last of ``changes`` config changes among ``n`` samples.
+
+    ``messages`` are the rig's config messages as ``(index of the next sample, config)``;
+    ``stored`` its configs stored as metadata (the first is the one in force when the file
+    began). As the live monitor does, a config that differs from the one in force after the
+    rig's first sample restarts its estimates: the samples before it were taken with other
+    constants, so they are not evaluated with these.
+    """
+    if not messages and len(set(map(_config_key, stored))) > 1:
+        raise ValueError(f"{name}: {len(stored)} different configs stored for the rig as metadata, but no "
+                         "config messages: cannot tell which samples each applies to")
+    current = stored[0] if stored else RigConfig()  # the monitor's defaults when none is known
+    first = changes = 0
+    for i, config in messages:
+        if i >= n:  # after the last sample: no sample was taken with it
+            break
+        if i > 0 and config != current:
+            first, changes = i, changes + 1
+        current = config
+    return current, first, changes
+
+
+def _config_key(config: RigConfig) -> tuple:
+    return tuple(config.model_dump().items())
+
+
+def _named(name: str, exc: Exception) -> str:
+    """The error's message, prefixed by the file's name unless it starts with it already."""
+    msg = str(exc)
+    return msg if msg.startswith(name) else f"{name}: {msg}"
 
 
 def load_recording(path: str | Path, rig: str | None = None, config: RigConfig | None = None) -> Recording:
     """Read and validate one rig's samples from ``.csv`` or ``.mcap``.
 
     ``rig`` picks the rig of a multi-rig MCAP (a CSV holds one rig, called ``csv``). The rig
-    constants are ``config`` if given, else the recording's (MCAP metadata), else the
+    constants are ``config`` if given (for the whole record), else the recording's (MCAP:
+    those after the last config change, and only the samples after it are kept), else the
     defaults (DESIGN.md section 5).
     """
     path = Path(path)
@@ -189,26 +303,31 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
             raise FileNotFoundError(f"{name}: no such file")
         try:
             rejected: list[str] = []
-            rig_id, data, seq = mcap_io.read_samples(str(path), rig=rig, rejected=rejected)
+            messages: list[tuple[int, RigConfig]] = []
+            rig_id, data, seq = mcap_io.read_samples(str(path), rig=rig, rejected=rejected, configs=messages)
+            stored = mcap_io.stored_configs(str(path), rig_id) if config is None else []
         except ValueError as exc:
             hint = " (pick one with --rig ID)" if "several rigs" in str(exc) else ""
-            raise ValueError(f"{name}: {exc}{hint}") from None
-        if config is None:
-            try:
-                config = mcap_io.read_rig_config(str(path), rig_id)
-            except ValueError:
-                config = RigConfig()
+            raise ValueError(f"{_named(name, exc)}{hint}") from None
+        where = f"{name} rig {rig_id!r}"
         if len(data) == 0:
             raise ValueError(f"{name}: rig {rig_id!r} has no samples")
         bad = np.argwhere(~np.isfinite(data))
         if bad.size:
             raise ValueError(f"{name}: sample {int(bad[0, 0])} of rig {rig_id!r} is not finite")
-        # gaps come from the sequence numbers (they also cover skipped invalid samples); the
-        # time stamps must still sit on the rig's sample grid
-        check_sampling(data[:, 0], config.sample_rate, lambda i: f"{name} rig {rig_id!r} sample {i}")
-        restarts, missing = _seq_gaps(seq, f"{name} rig {rig_id!r}")
+        first = changes = 0
+        if config is None:
+            config, first, changes = _after_last_change(messages, stored, len(data), where)
+            data, seq = data[first:], seq[first:]
+        # by seq, as the live monitor: it restarts the filters at a seq jump (which also covers
+        # skipped invalid samples) and never reads t, so t off the grid is counted, not refused
+        taken, duplicate, out_of_order = _seq_taken(seq, data[:, 0], where, first)
+        data, seq = data[taken], seq[taken]
+        restarts, missing = _seq_gaps(seq)
+        jitter, jitter_max = _time_jitter(data[:, 0], seq, config.sample_rate)
         return Recording(rig_id, data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
-                         tuple(restarts), missing, len(rejected))
+                         tuple(restarts), missing, len(rejected), duplicate, out_of_order,
+                         jitter, jitter_max, changes, first)
     raise ValueError(f"{name}: unknown file type {path.suffix!r}; give a .csv (t,ug,x1,x3,x4,x5) or .mcap")
 
 
@@ -261,7 +380,10 @@ def to_json(ev: Evaluation) -> dict:
     out["x1_outside_chambers"] = ev.x1_clamped
     out["implausible"] = list(a.implausible)  # impossible estimates: the grade is withheld
     rec = ev.recording
-    out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected}
+    out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected,
+                   "duplicate_samples": rec.duplicate, "out_of_order_samples": rec.out_of_order}
+    out["timestamp_jitter"] = {"intervals": rec.jitter, "max_s": rec.jitter_max}
+    out["config_changes"] = {"count": rec.config_changes, "skipped_samples": rec.skipped}
     if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
         r = ev.refined
         out["refined"] = {"ok": r.ok, "message": r.message,
@@ -279,8 +401,7 @@ def render(ev: Evaluation, console=None) -> None:
     console = console or Console()
     a = ev.assessment
     r = ev.recording
-    dur = len(r.samples) / r.config.sample_rate
-    console.print(f"[bold]{r.source}[/bold]  rig {r.rig}: {len(r.samples)} samples, {dur:g} s")
+    console.print(f"[bold]{r.source}[/bold]  rig {r.rig}: {len(r.samples)} samples, {r.duration:g} s")
     level = "unknown" if a.level < 0 else str(a.level)
     console.print(f"grade [bold]{a.grade}[/bold]  level {level}  confidence {a.confidence:.3f}  "
                   f"status {ev.status}")
@@ -306,9 +427,21 @@ def render(ev: Evaluation, console=None) -> None:
         console.print(f"[dim]the valve is graded on its static gain K_sv; K_sv omega^2 is reported, not graded: it "
                       f"needs the valve's dynamics excited, which a record that starts mid-run on a smooth command "
                       f"lacks ({how}); --ranges paper grades it as Table 3 prints it[/dim]")
-    if r.restarts or r.rejected:
+    if r.config_changes:
+        console.print(f"[yellow]the rig's config changed {r.config_changes} time(s): evaluated the samples after the "
+                      f"last change (sample {r.skipped}, t = {r.t[0]:g} s) with its constants, as the live monitor "
+                      f"restarts a rig's estimates there; the {r.skipped} sample(s) before it were skipped "
+                      "(hydromon replay --direct grades every stretch)[/yellow]")
+    if r.restarts or r.rejected or r.duplicate or r.out_of_order:
+        dropped = (f", {r.duplicate} duplicate and {r.out_of_order} out-of-order sample(s) dropped (seq not above "
+                   "the last one taken)" if r.duplicate or r.out_of_order else "")
         console.print(f"[yellow]{len(r.restarts)} gap(s), {r.missing} sample(s) missing, {r.rejected} invalid "
-                      "sample(s) skipped: the filters restarted after each gap, the estimates carried on[/yellow]")
+                      f"sample(s) skipped{dropped}: the filters restarted after each gap, the estimates carried "
+                      "on[/yellow]")
+    if r.jitter:
+        console.print(f"[yellow]{r.jitter} sample interval(s) with time stamps off their seq step by more than "
+                      f"{100 * RATE_TOL:g} % of a period (largest {1e3 * r.jitter_max:.3g} ms): graded by seq, as "
+                      "the live monitor does[/yellow]")
     if a.implausible:
         what = ", ".join(f"{k} = {a.params[k]:.3g} (SE {a.std_errors[k]:.2g})" for k in a.implausible)
         console.print(f"[red]not graded: physically impossible estimates ({what}; each must be positive). The "

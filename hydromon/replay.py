@@ -26,20 +26,21 @@ verdicts go out on the same keys as the new ones).
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 
 import zenoh
-from mcap.reader import make_reader
 
 from hydromon.bus import JSON
 from hydromon.contract import DEFAULT_NAMESPACE
-from hydromon.mcap_io import CorruptRecording, TruncatedRecording, opened, read_recording, rig_topic
+from hydromon.mcap_io import read_recording, read_summary, rig_topic
 
 __all__ = ["KeyFilter", "recording_span", "recording_topics", "iter_window", "replay_direct", "replay_bus",
-           "ReplayStats", "health_jsonl"]
+           "ReplayStats", "health_jsonl", "NothingToReplay", "check_window", "window_problem", "sample_namespaces",
+           "nothing_graded"]
 
 log = logging.getLogger(__name__)
 
@@ -78,26 +79,15 @@ class KeyFilter:
         return hit
 
 
-def _summary(src):
-    with opened(src) as (f, name):
-        try:
-            summary = make_reader(f).get_summary()
-        except Exception as exc:  # the mcap library raises many kinds on a damaged file
-            raise CorruptRecording(f"{name}: {type(exc).__name__}: {exc}") from exc
-        if summary is None or summary.statistics is None:
-            raise TruncatedRecording(f"{name}: recording has no summary; run `hydromon recover {name}`")
-        return summary
-
-
 def recording_span(src) -> tuple[int, int, int]:
     """``(first_log_time_ns, last_log_time_ns, message_count)`` from the recording's summary."""
-    st = _summary(src).statistics
+    st = read_summary(src).statistics
     return int(st.message_start_time), int(st.message_end_time), int(st.message_count)
 
 
 def recording_topics(src) -> list[str]:
     """The topics (keys) of the recording, sorted."""
-    return sorted({c.topic for c in _summary(src).channels.values()})
+    return sorted({c.topic for c in read_summary(src).channels.values()})
 
 
 def _window(src, start: float | None, duration: float | None) -> tuple[int, int | None, int | None, int]:
@@ -127,6 +117,82 @@ def _read_window(src, lo: int | None, hi: int | None, first: int) -> Iterator[tu
         yield key, payload, head[2], pub_ns
     yield head
     yield from window
+
+
+class NothingToReplay(ValueError):
+    """The recording, the window or the key filter leaves nothing to replay or to grade."""
+
+
+def sample_namespaces(topics: Iterable[str]) -> list[str]:
+    """The namespaces ``<ns>`` of the rig sample topics ``<ns>/rig/<id>/sample`` among ``topics``."""
+    return sorted({t[: -len(f"/rig/{p[0]}/sample")] for t in topics
+                   if (p := rig_topic(t)) and p[1] == "sample" and t.endswith(f"/rig/{p[0]}/sample")})
+
+
+def _listed(items: list[str], n: int = 5) -> str:
+    return ", ".join(items[:n]) + (f" and {len(items) - n} more" if len(items) > n else "")
+
+
+def window_problem(name: str, topics: list[str], span_s: float, count: int, *, keys: Iterable[str] | None,
+                   start: float | None, namespace: str | None = None) -> str | None:
+    """Why the window of a recording holds nothing to replay (or, with ``namespace``, to grade); None if it may.
+
+    ``topics`` are the recording's, ``span_s`` the log time from its first to its last message [s],
+    ``count`` its messages. Pure: the checks :func:`check_window` makes on a file.
+    """
+    if count == 0:
+        return f"{name}: the recording holds no messages"
+    if start is not None and start * 1e9 > round(span_s * 1e9):
+        return (f"{name}: --start {start:g} s is past the recording's end (its messages span "
+                f"{span_s:.3f} s from the first)")
+    match = KeyFilter(keys)
+    hit = [t for t in topics if match(t)]
+    if not hit:
+        return (f"{name}: no topic matches --keys {' '.join(repr(k) for k in match.patterns)}; "
+                f"the recording's topics: {_listed(topics)}")
+    if namespace is None:
+        return None
+    mine = [t for t in hit if (p := rig_topic(t)) and p[1] == "sample" and t == f"{namespace}/rig/{p[0]}/sample"]
+    if mine:
+        return None
+    others = sample_namespaces(hit)
+    if len(others) == 1:
+        return (f"{name}: recorded under namespace {others[0]}, not {namespace}; "
+                f"use --namespace {others[0]}")
+    if others:
+        return (f"{name}: no rig samples under namespace {namespace}; the recording's are under "
+                f"{_listed(others)}: choose one with --namespace")
+    return (f"{name}: no rig samples (<ns>/rig/<id>/sample) among the replayed topics "
+            f"({_listed(hit)}): nothing to grade")
+
+
+def check_window(src, *, keys: Iterable[str] | None = None, start: float | None = None,
+                 namespace: str | None = None) -> None:
+    """Raise :class:`NothingToReplay` (naming the file and why) when the window holds nothing to
+    replay, or with ``namespace`` no sample of that namespace to grade. Damaged files raise as
+    :func:`~hydromon.mcap_io.read_summary` does."""
+    summary = read_summary(src)
+    st = summary.statistics
+    name = os.fspath(src) if isinstance(src, (str, os.PathLike)) else getattr(src, "name", "<stream>")
+    topics = sorted({c.topic for c in summary.channels.values()})
+    span_s = (int(st.message_end_time) - int(st.message_start_time)) / 1e9
+    why = window_problem(name, topics, span_s, int(st.message_count), keys=keys, start=start, namespace=namespace)
+    if why:
+        raise NothingToReplay(why)
+
+
+def nothing_graded(name: str, health: list, counters) -> str | None:
+    """Why a direct replay graded nothing (no health message), from the core's counters; None if it did."""
+    if health:
+        return None
+    rejected = {k: v for k, v in counters.rejected.items() if v}
+    if counters.accepted == 0 and rejected:
+        return (f"{name}: no sample was accepted (rejected: "
+                f"{', '.join(f'{k} {v}' for k, v in sorted(rejected.items()))}): nothing graded")
+    if counters.accepted == 0:
+        return f"{name}: no sample in the window (--start, --duration, --keys): nothing graded"
+    return (f"{name}: {counters.accepted} samples accepted but no health message: too few samples "
+            "for a verdict (the monitor grades every 10th sample of a rig)")
 
 
 def iter_window(src, *, keys: Iterable[str] | None = None, start: float | None = None,

@@ -82,3 +82,21 @@ BAD_SAMPLES = [
     ("bad-value", sample_with(x5=0.2)),
     ("bad-value", sample_with(ug=2000)),
 ]
+
+
+def chunk_spans(data: bytes) -> list[tuple[int, int, int]]:
+    """``(record start, record end, compressed size)`` of every chunk of a complete MCAP, in file order."""
+    import io
+
+    from mcap.reader import make_reader
+
+    idx = make_reader(io.BytesIO(data)).get_summary().chunk_indexes
+    return sorted((c.chunk_start_offset, c.chunk_start_offset + c.chunk_length, c.compressed_size) for c in idx)
+
+
+def flip_in_chunk(data: bytes, i: int, bit: int = 2) -> bytes:
+    """``data`` with one bit flipped in the middle of chunk ``i``'s compressed bytes (framing intact)."""
+    _start, end, compressed = chunk_spans(data)[i]
+    bad = bytearray(data)
+    bad[end - compressed // 2] ^= 1 << bit
+    return bytes(bad)

@@ -30,7 +30,7 @@ from hydromon.bus import free_tcp_endpoint, open_session
 from hydromon.contract import Health
 from hydromon.demo import true_grade
 from hydromon.fleetfile import default_fleet
-from hydromon.mcap_io import read_recording, recover
+from hydromon.mcap_io import MAGIC, read_recording, recover
 from hydromon.monitornode import run_monitor
 from hydromon.replay import replay_direct
 from helpers import health_seqs, wait_for  # noqa: F401
@@ -96,9 +96,10 @@ class Procs:
 
 def _messages_on_disk(path) -> int:
     """Messages readable from a snapshot of a recording that is still being written."""
-    if not path.exists():
+    data = path.read_bytes() if path.exists() else b""
+    if len(data) < len(MAGIC):  # just created: recover refuses what is shorter than the magic
         return 0
-    return recover(io.BytesIO(path.read_bytes()), io.BytesIO()).messages
+    return recover(io.BytesIO(data), io.BytesIO()).messages
 
 
 def _warm_kernels() -> None:

@@ -12,7 +12,7 @@ from plant_sim.profiles import PaperVariable
 from plant_sim.simulate import simulate
 
 KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps", "implausible",
-        "x1_outside_chambers"}
+        "x1_outside_chambers", "timestamp_jitter", "config_changes"}
 
 
 @pytest.fixture(scope="module")
@@ -202,7 +202,8 @@ def test_gaps_and_invalid_samples_are_evaluated_as_the_live_monitor_takes_them(g
     assert ev.assessment.params == live.params
     assert main(["evaluate", str(p), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["gaps"] == {"count": 2, "missing_samples": 31, "rejected_samples": 1}
+    assert doc["gaps"] == {"count": 2, "missing_samples": 31, "rejected_samples": 1, "duplicate_samples": 0,
+                           "out_of_order_samples": 0}
     assert doc["grade"] == "average"
     assert main(["evaluate", str(p)]) == 0
     assert "2 gap(s), 31 sample(s) missing, 1 invalid" in capsys.readouterr().out

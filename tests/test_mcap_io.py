@@ -15,8 +15,9 @@ from mcap.reader import make_reader
 from hydromon import docs_gen
 from hydromon.cli import main as cli_main
 from hydromon.contract import Health, RigConfig, Sample
+from helpers import chunk_spans, flip_in_chunk
 from hydromon.mcap_io import (
-    CorruptRecording, RecordingError, RecordingWriter, TruncatedRecording, read_recording,
+    MAGIC, CorruptRecording, EmptyRecording, RecordingError, RecordingWriter, TruncatedRecording, read_recording,
     read_rig_config, read_samples, recover,
 )
 
@@ -280,7 +281,7 @@ def test_without_time_flushing_a_cut_loses_everything():
     assert got == []
 
 
-def test_recover_at_many_random_offsets_never_raises_and_keeps_a_prefix():
+def test_recover_at_many_random_offsets_keeps_a_prefix_and_refuses_less_than_the_magic():
     cfg = RigConfig().model_dump_json().encode()
     msgs = [("hydro/rig/r1/config", cfg, 5 * NS, 5 * NS)] + sample_stream(400)[1:]
     data, sizes = write_messages(msgs, flush_interval_ns=200_000_000)
@@ -290,6 +291,11 @@ def test_recover_at_many_random_offsets_never_raises_and_keeps_a_prefix():
     counts = []
     for cut in sorted(offsets):
         out = io.BytesIO()
+        if cut < len(MAGIC):  # nothing to recover: refused, nothing written
+            with pytest.raises(EmptyRecording, match="nothing to read or recover"):
+                recover(io.BytesIO(data[:cut]), out)
+            assert out.getvalue() == b""
+            continue
         report = recover(io.BytesIO(data[:cut]), out)
         got = list(read_recording(io.BytesIO(out.getvalue())))
         assert got == msgs[: len(got)], cut
@@ -328,6 +334,82 @@ def test_recover_survives_any_single_bit_flip(pos, bit):
     report = recover(io.BytesIO(bytes(bad)), out)
     got = list(read_recording(io.BytesIO(out.getvalue())))  # the output is always valid
     assert report.messages == len(got) <= len(msgs)
+
+
+def _config_and_samples(n: int = 500):
+    cfg = RigConfig().model_dump_json().encode()
+    return [("hydro/rig/r1/config", cfg, 5 * NS, 5 * NS)] + sample_stream(n)[1:]
+
+
+@pytest.mark.parametrize("footer", [True, False], ids=["complete", "cut"])
+@pytest.mark.parametrize("which", [0, 4, -1], ids=["first", "middle", "last"])
+def test_recover_skips_a_damaged_chunk_and_keeps_every_other(which, footer):
+    msgs = _config_and_samples()
+    data, _ = write_messages(msgs, flush_interval_ns=NS // 2)
+    spans = chunk_spans(data)
+    assert len(spans) == 10
+    which %= len(spans)
+    bad = flip_in_chunk(data, which)
+    if not footer:
+        bad = bad[: spans[-1][1]]  # a killed recorder: nothing after the last chunk
+    out = io.BytesIO()
+    report = recover(io.BytesIO(bad), out)
+    # the chunk's messages: those in its log-time span (chunks cut by log time, half a second each)
+    lo, hi = msgs[0][2] + which * NS // 2, msgs[0][2] + (which + 1) * NS // 2
+    in_chunk = [m for m in msgs if lo <= m[2] < hi]
+    assert len(in_chunk) == 50
+    got = list(read_recording(io.BytesIO(out.getvalue())))
+    rest = [m for m in msgs if m not in in_chunk]
+    if which == 0 and not footer:  # the only record of the channel was in the lost chunk, and no summary
+        assert got == [] and report.orphans == len(rest)
+        assert f"{len(rest)} messages without a channel dropped" in report.summary()
+        return
+    assert got == rest  # a complete file's summary names the channels of a lost first chunk
+    assert report.chunks == 9 and report.chunks_lost == 1 and report.orphans == 0
+    lost = report.lost[0]
+    assert lost["byte"] == spans[which][0] and lost["log_time_s"] == [in_chunk[0][2] / NS, in_chunk[-1][2] / NS]
+    assert lost["why"].startswith(("CRCValidationError", "ZstdError"))
+    assert not report.data_complete
+    if footer:  # the message indexes after the chunk (cut away with the footer here) count its messages
+        assert report.stopped_by is None and report.messages_lost == lost["messages"] == len(in_chunk)
+        assert f"LOST 1 damaged chunk(s) with {len(in_chunk)} messages (byte {spans[which][0]}" in report.summary()
+        assert "source read to its end" in report.summary()
+    assert report.messages == len(msgs) - len(in_chunk)
+
+
+def test_recover_command_reports_the_lost_chunk(tmp_path, capsys):
+    data, _ = write_messages(_config_and_samples(), flush_interval_ns=NS // 2)
+    src = tmp_path / "flip.mcap"
+    src.write_bytes(flip_in_chunk(data, 5))
+    assert cli_main(["recover", str(src), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["messages"] == 450 and report["chunks_lost"] == 1 and report["messages_lost"] == 50
+    assert report["lost"][0]["byte"] == chunk_spans(data)[5][0] and report["lost"][0]["messages"] == 50
+
+
+def test_reading_a_chunk_that_fails_its_crc_says_so_never_returns_other_bytes():
+    msgs = _config_and_samples()
+    data, _ = write_messages(msgs, flush_interval_ns=NS // 2)
+    bad = flip_in_chunk(data, 4)
+    with pytest.raises(CorruptRecording, match=f"damaged recording: the chunk at byte {chunk_spans(data)[4][0]} "
+                                               r"\(log time 7.000-7.490 s\) (fails its CRC check|does not decompress)"
+                                               ".*run `hydromon recover"):
+        list(read_recording(io.BytesIO(bad)))
+    assert list(read_recording(io.BytesIO(bad), end_ns=7 * NS)) == [m for m in msgs if m[2] < 7 * NS]
+
+
+def test_an_empty_file_is_empty_not_truncated_and_recover_writes_nothing(tmp_path, capsys):
+    src = tmp_path / "empty.mcap"
+    src.write_bytes(b"")
+    with pytest.raises(EmptyRecording, match=f"{src}: empty recording \\(0 bytes\\): nothing to read or recover"):
+        read_recording(src)
+    assert cli_main(["recover", str(src)]) == 2
+    assert f"hydromon recover: error: {src}: empty recording (0 bytes): nothing to read or recover" \
+        in capsys.readouterr().err
+    assert not (tmp_path / "empty.recovered.mcap").exists()
+    src.write_bytes(MAGIC[:5])
+    assert cli_main(["recover", str(src)]) == 2
+    assert "5 bytes, shorter than the MCAP magic" in capsys.readouterr().err
 
 
 def test_recover_rejects_what_is_not_mcap():

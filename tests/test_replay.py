@@ -14,11 +14,14 @@ import pytest
 from hydromon.bus import free_tcp_endpoint, open_session
 from hydromon.contract import Health
 from hydromon.fleetfile import default_fleet
-from hydromon.mcap_io import read_recording
+from hydromon.mcap_io import CorruptRecording, RecordingWriter, read_recording
 from hydromon.monitornode import MonitorCore, run_monitor
-from hydromon.replay import KeyFilter, health_jsonl, iter_window, recording_span, replay_bus, replay_direct
+from hydromon.replay import (
+    KeyFilter, NothingToReplay, check_window, health_jsonl, iter_window, recording_span, replay_bus, replay_direct,
+)
 from hydromon.simnode import write_mcap
 from plant_sim.degradation import TABLE4_PAPER_GRADES
+from helpers import chunk_spans, flip_in_chunk
 
 
 @pytest.fixture(scope="module")
@@ -203,3 +206,116 @@ def test_late_sends_do_not_shift_later_deadlines(recording):
     late = sent > due + 1e-9
     assert late.sum() == 49 and np.all(sent[late] == sent[10])  # sent back to back when late
     np.testing.assert_allclose(sent[~late], due[~late], rtol=0, atol=1e-9)  # back on the grid after
+
+
+# -- damaged files and empty windows: a clear error naming the file, exit 2 -----------------------
+def _summary_flip(data: bytes) -> bytes:
+    import struct
+
+    start = struct.unpack_from("<Q", data, len(data) - 8 - 20)[0]  # the footer's summary start
+    bad = bytearray(data)
+    bad[(start + len(data) - 8 - 29) // 2] ^= 1  # halfway into the summary
+    return bytes(bad)
+
+
+DAMAGE = {  # what was done to the file -> what replay must say
+    "footer cut": (lambda d: d[:-8], "recording has no footer .*run `hydromon recover {f}`"),
+    "cut at half": (lambda d: d[: len(d) // 2], "recording has no footer .*run `hydromon recover {f}`"),
+    "empty": (lambda d: b"", "empty recording \\(0 bytes\\): nothing to read or recover"),
+    "bit flip in the summary": (_summary_flip, "damaged recording: its summary .*CRC.*run `hydromon recover {f}`"),
+}
+
+
+def _cli(argv, capsys):
+    from hydromon.cli import main
+
+    rc = main(argv)
+    return rc, capsys.readouterr().err
+
+
+@pytest.fixture
+def no_session(monkeypatch):
+    """A bus replay must fail before it opens a session: opening one fails the test (and keeps it off the network)."""
+    def refuse(args):
+        raise AssertionError("a session was opened")
+    monkeypatch.setattr("hydromon.commands.replay.session_from_args", refuse)
+
+
+@pytest.mark.parametrize("mode", [["--direct"], ["--quiet", "--wait", "0"]], ids=["direct", "bus"])
+@pytest.mark.parametrize("damage", DAMAGE)
+def test_replay_of_a_damaged_file_names_it_and_recover_and_exits_2(recording, tmp_path, capsys, damage, mode,
+                                                                   no_session):
+    import re
+
+    cut, want = DAMAGE[damage]
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(cut(recording.read_bytes()))
+    out = tmp_path / "h.jsonl"
+    rc, err = _cli(["replay", str(bad), *mode] + (["--out", str(out)] if "--direct" in mode else []), capsys)
+    assert rc == 2 and "Traceback" not in err
+    assert re.search(f"hydromon replay: error: {re.escape(str(bad))}: " + want.format(f=re.escape(str(bad))), err), err
+    assert not out.exists()
+
+
+def test_a_chunk_failing_its_crc_in_a_complete_file_is_a_clear_error_not_wrong_health(recording, tmp_path, capsys):
+    bad = tmp_path / "flip.mcap"
+    bad.write_bytes(flip_in_chunk(recording.read_bytes(), 2))  # zstd may still decompress it: the CRC must tell
+    rc, err = _cli(["replay", str(bad), "--direct"], capsys)
+    assert rc == 2 and "Traceback" not in err
+    assert f"{bad}: damaged recording: the chunk at byte {chunk_spans(bad.read_bytes())[2][0]} (log time" in err
+    assert f"run `hydromon recover {bad}` to salvage the intact chunks" in err
+    ft = _FakeTime()  # the bus replay: the same error when it reaches the chunk
+    with pytest.raises(CorruptRecording, match="damaged recording: the chunk at byte .* fails its CRC check"):
+        replay_bus(_FakeSession(ft), bad, rate=0, stop_event=ft, clock=ft)
+
+
+def _rewrite(src, dst, keep=lambda k: True, key=lambda k: k, n=None):
+    with open(dst, "wb") as f, RecordingWriter(f) as w:
+        for k, p, log_ns, pub_ns in list(read_recording(src))[:n]:
+            if keep(k):
+                w.write(key(k), p, log_ns, pub_ns)
+    return dst
+
+
+def test_direct_replay_under_another_namespace_says_which_and_exits_2(recording, tmp_path, capsys):
+    site = _rewrite(recording, tmp_path / "site.mcap", key=lambda k: k.replace("hydro/", "site1/lineA/", 1), n=600)
+    out = tmp_path / "h.jsonl"
+    rc, err = _cli(["replay", str(site), "--direct", "--out", str(out)], capsys)
+    assert rc == 2 and not out.exists()
+    assert f"{site}: recorded under namespace site1/lineA, not hydro; use --namespace site1/lineA" in err
+    rc, err = _cli(["replay", str(site), "--direct", "--out", str(out), "--namespace", "site1/lineA"], capsys)
+    assert rc == 0 and out.read_bytes().count(b"\n") > 0
+
+
+def test_direct_replay_that_grades_nothing_exits_2(recording, tmp_path, capsys):
+    configs = _rewrite(recording, tmp_path / "configs.mcap", keep=lambda k: not k.endswith("/sample"), n=600)
+    rc, err = _cli(["replay", str(configs), "--direct"], capsys)
+    assert rc == 2 and "no rig samples (<ns>/rig/<id>/sample) among the replayed topics" in err
+    rc, err = _cli(["replay", str(recording), "--direct", "--start", "3", "--duration", "0"], capsys)
+    assert rc == 2 and f"{recording}: no sample in the window" in err
+    with pytest.raises(NothingToReplay, match="holds no messages"):
+        check_window(_rewrite(recording, tmp_path / "none.mcap", keep=lambda k: False))
+
+
+@pytest.mark.parametrize("mode", [["--direct"], ["--quiet", "--wait", "0"]], ids=["direct", "bus"])
+@pytest.mark.parametrize("args, want", [
+    (["--start", "1e6"], "--start 1e\\+06 s is past the recording's end \\(its messages span 4.990 s"),
+    (["--keys", "bad key"], "no topic matches --keys 'bad key'; the recording's topics: hydro/rig/table4-g1/config"),
+])
+def test_a_window_with_nothing_in_it_is_an_error_in_both_modes(recording, capsys, mode, args, want, no_session):
+    import re
+
+    rc, err = _cli(["replay", str(recording), *mode, *args], capsys)
+    assert rc == 2 and re.search(f"hydromon replay: error: {re.escape(str(recording))}: {want}", err), err
+
+
+def test_a_bus_replay_that_sent_nothing_exits_2(recording, capsys, monkeypatch):
+    import contextlib
+
+    session = _FakeSession(_FakeTime())
+    monkeypatch.setattr("hydromon.commands.replay.session_from_args", lambda args: contextlib.nullcontext(session))
+    # an empty window (no time in it) sends nothing, not even the configs carried into a window
+    rc, err = _cli(["replay", str(recording), "--quiet", "--rate", "0", "--wait", "0", "--start", "1",
+                    "--duration", "0"], capsys)
+    assert rc == 2 and session.sent == []
+    assert f"hydromon replay: error: {recording}: no message in the window (--start, --duration, --keys): nothing sent" in err

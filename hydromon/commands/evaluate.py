@@ -32,7 +32,8 @@ def run(args) -> int:
 
     ranges = ranges_from_args(args)
     rec = load_recording(args.file, rig=args.rig)
-    print(f"hydromon evaluate: {rec.source}: rig {rec.rig}, {len(rec.samples)} samples", file=sys.stderr)
+    skipped = f" ({rec.skipped} before its last config change skipped)" if rec.skipped else ""
+    print(f"hydromon evaluate: {rec.source}: rig {rec.rig}, {len(rec.samples)} samples{skipped}", file=sys.stderr)
     if args.refine:
         print(f"hydromon evaluate: refining over {len(rec.samples) / rec.config.sample_rate:g} s of data "
               f"(about {0.1 * len(rec.samples) / rec.config.sample_rate:.0f} s)", file=sys.stderr)

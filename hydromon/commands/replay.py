@@ -41,13 +41,17 @@ def add_arguments(parser) -> None:
 
 def _direct(args) -> int:
     from hydromon.monitornode import RateLimitedLog, MonitorCore
-    from hydromon.replay import health_jsonl, replay_direct
+    from hydromon.replay import NothingToReplay, check_window, health_jsonl, nothing_graded, replay_direct
 
     if args.loop:
         raise ValueError("--loop has no meaning with --direct")
+    check_window(args.file, keys=args.keys, start=args.start, namespace=args.namespace)
     core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges_from_args(args))
     health, core = replay_direct(args.file, keys=args.keys, start=args.start, duration=args.duration,
                                  namespace=args.namespace, core=core)
+    why = nothing_graded(args.file, health, core.counters)
+    if why:
+        raise NothingToReplay(why)  # before --out: no empty health file
     if args.out:
         with open(args.out, "wb") as f:
             f.writelines(health_jsonl(health))
@@ -78,9 +82,10 @@ def run(args) -> int:
         raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
     if args.ranges is not None:
         raise ValueError("--ranges goes with --direct (a bus replay publishes samples; the monitor grades them)")
-    from hydromon.replay import recording_span, replay_bus
+    from hydromon.replay import NothingToReplay, check_window, recording_span, replay_bus
 
-    first, last, _ = recording_span(args.file)  # a bad file fails here, before the session opens
+    check_window(args.file, keys=args.keys, start=args.start)  # a bad file fails here, before the session opens
+    first, last, _ = recording_span(args.file)
     total = max(0.0, (last - first) / 1e9 - (args.start or 0.0))
     if args.duration is not None:
         total = min(total, args.duration)
@@ -107,4 +112,6 @@ def run(args) -> int:
             signal.signal(sig, handler)
     print(f"hydromon replay: {stats.published} messages on {len(stats.keys)} key(s), {stats.passes} pass(es) "
           f"in {stats.wall:.2f} s; max lateness {stats.max_late * 1e3:.1f} ms", file=sys.stderr)
+    if stats.published == 0 and not stop.is_set():
+        raise NothingToReplay(f"{args.file}: no message in the window (--start, --duration, --keys): nothing sent")
     return 0
