@@ -137,6 +137,8 @@ class MonitorCore:
                  on_warning: Callable[[str, str], None] | None = None, **fleet_kw):
         self.namespace = _check_ns(namespace)
         self.eval_every = int(eval_every)
+        if self.eval_every < 1:
+            raise ValueError(f"eval_every {eval_every!r} must be >= 1")
         self.stale_samples = self.eval_every if stale_samples is None else int(stale_samples)
         if self.stale_samples < 0:
             raise ValueError(f"stale_samples {stale_samples!r} must be >= 0")

@@ -182,8 +182,9 @@ def reproduce(noise: str = "none", seeds: int = 1, calibration_runs: int = 40,
     whole-record fit to Table 2 (about 1 s of CPU per seed)."""
     if seeds < 1:
         raise ValueError(f"--seeds {seeds}: need at least 1")
-    if 0 < calibration_runs < 10:
-        raise ValueError(f"calibration needs at least 10 runs (two per label), got {calibration_runs}")
+    if calibration_runs < 0 or 0 < calibration_runs < 10:
+        raise ValueError(f"--calibration-runs {calibration_runs}: 0 (our default ranges) or at least 10 "
+                         "(two runs per label)")
     config = config or RigConfig()
     noise_model(noise, config)  # validate early
     t2, hist = _table2(noise, seeds, config, refined)

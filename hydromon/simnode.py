@@ -15,6 +15,7 @@ one publishes the current block in deadline order.
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
 import time
@@ -143,8 +144,8 @@ class SimNode:
             clock=time.monotonic) -> SimStats:
         """Publish until ``duration`` [s of rig time] is done or ``stop_event`` is set."""
         fleet, h = self.fleet, self.fleet.h
-        if duration is not None and not duration > 0:
-            raise ValueError(f"duration {duration!r} must be > 0 s")
+        if duration is not None and not (math.isfinite(duration) and duration > 0):
+            raise ValueError(f"duration {duration!r} must be a finite number > 0 s")
         total = None if duration is None else int(round(duration / h))
         stop = stop_event or threading.Event()
         stats = SimStats()
@@ -252,17 +253,17 @@ def iter_blocks(fleet: PlantFleet, n_samples: int, block: int = 1000):
 
 
 def _n_samples(duration: float, h: float) -> int:
+    if not math.isfinite(duration):
+        raise ValueError(f"duration {duration!r} s must be a finite number")
     n = int(round(duration / h)) if duration > 0 else 0
     if n < 1:
         raise ValueError(f"duration {duration!r} s gives no samples at h = {h} s")
     return n
 
 
-def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None) -> int:
-    """Write one rig's run of ``duration`` [s] as CSV ``t,ug,x1,x3,x4,x5`` (SI) to a text stream.
-
-    ``rig`` picks a rig of the fleet by id (needed if it has several). Returns the row count.
-    """
+def select_rig(spec: FleetSpec, rig: str | None) -> FleetSpec:
+    """The one-rig fleet of rig ``rig`` (None: the fleet must have one rig), with the noise
+    seed it has in ``spec``, so its run is the one it has in the whole fleet's run."""
     if rig is None:
         if len(spec.rigs) != 1:
             raise ValueError(f"a CSV holds one rig and the fleet has {len(spec.rigs)} "
@@ -270,12 +271,21 @@ def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None) 
         rig = spec.ids[0]
     if rig not in spec.ids:
         raise ValueError(f"no rig {rig!r} in the fleet")
-    one = FleetSpec(config=spec.config, seed=spec.seed,
-                    rigs=[r.model_copy(update={"seed": s}) for r, s in zip(spec.rigs, spec.seeds()) if r.id == rig])
+    return FleetSpec(config=spec.config, seed=spec.seed,
+                     rigs=[r.model_copy(update={"seed": s}) for r, s in zip(spec.rigs, spec.seeds()) if r.id == rig])
+
+
+def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None) -> int:
+    """Write one rig's run of ``duration`` [s] as CSV ``t,ug,x1,x3,x4,x5`` (SI) to a text stream.
+
+    ``rig`` picks a rig of the fleet by id (needed if it has several). Returns the row count.
+    """
+    one = select_rig(spec, rig)
+    n = _n_samples(duration, one.config.h)  # before the first byte
     fleet = one.build()
     stream.write("t,ug,x1,x3,x4,x5\n")
     rows = 0
-    for blk in iter_blocks(fleet, _n_samples(duration, fleet.h)):
+    for blk in iter_blocks(fleet, n):
         for t, row in zip(blk.t.tolist(), blk.samples[0].tolist()):
             stream.write(",".join(map(repr, [t, *row])) + "\n")
             rows += 1
@@ -290,12 +300,13 @@ def write_mcap(spec: FleetSpec, duration: float, stream, namespace: str = DEFAUL
     """
     from hydromon.mcap_io import RecordingWriter  # the MCAP edge, imported only when used
 
+    n = _n_samples(duration, spec.config.h)  # before the first byte
     fleet = spec.build()
     skeys = [sample_key(i, namespace) for i in spec.ids]
     with RecordingWriter(stream) as writer:
         for i, key in enumerate(config_key(i, namespace) for i in spec.ids):
             writer.write(key, orjson.dumps(fleet.configs[i].model_dump(mode="json")), 0, 0)
-        for blk in iter_blocks(fleet, _n_samples(duration, fleet.h), block=100):
+        for blk in iter_blocks(fleet, n, block=100):
             rows = blk.samples.tolist()
             for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
                 t_ns = int(round(t * 1e9))

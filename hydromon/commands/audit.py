@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import sys
 from pathlib import Path
@@ -11,8 +10,6 @@ import numpy as np
 
 NAME = "audit"
 HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named model extension explains it"
-
-COLUMNS = ("t", "ug", "x1", "x3", "x4", "x5")
 
 
 def add_arguments(parser) -> None:
@@ -24,66 +21,83 @@ def add_arguments(parser) -> None:
                         help="leading fraction of the record used for fitting (default 0.7)")
 
 
-def read_csv(stream) -> tuple[np.ndarray, np.ndarray]:
-    """``(t [s], samples (N, 5))`` from a CSV stream with header t,ug,x1,x3,x4,x5."""
-    reader = csv.DictReader(stream)
-    if reader.fieldnames is None or not set(COLUMNS) <= set(reader.fieldnames):
-        raise ValueError(f"CSV needs a header with columns {','.join(COLUMNS)}; got {reader.fieldnames}")
-    rows = []
-    for i, r in enumerate(reader):
-        try:
-            rows.append([float(r[c]) for c in COLUMNS])
-        except (TypeError, ValueError):
-            raise ValueError(f"CSV row {i + 2}: not a number in {[r.get(c) for c in COLUMNS]}") from None
-    data = np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS))
+def read_csv(stream, name: str = "<csv>") -> tuple[np.ndarray, np.ndarray]:
+    """``(t [s], samples (N, 5))`` from a CSV path or text stream with header t,ug,x1,x3,x4,x5:
+    ``hydromon.evaluate.read_csv``, whose errors name the file and line."""
+    from hydromon.evaluate import read_csv as read_rows
+
+    data = read_rows(stream, name)
     return data[:, 0], data[:, 1:]
 
 
-def _config_for(t: np.ndarray, config=None):
+def _config_for(t: np.ndarray, config=None, name: str = "<record>", where=lambda i: f"sample {i}"):
+    """The rig constants with the record's sample rate (its median period); ``where(i)``
+    names sample i in an error (e.g. its CSV line)."""
     from plant_sim.params import RigConfig
 
     if len(t) < 2:
-        raise ValueError(f"record has {len(t)} samples; too few")
+        raise ValueError(f"{name}: {len(t)} sample(s); the audit needs more")
     dt = np.diff(t)
-    if np.any(dt <= 0):
-        raise ValueError("t must increase strictly")
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise ValueError(f"{where(i)}: t = {float(t[i])!r} s does not increase strictly "
+                         f"(previous {float(t[i - 1])!r} s)")
     h = float(np.median(dt))
-    if np.max(np.abs(dt - h)) > 0.01 * h:
-        raise ValueError(f"samples must be evenly spaced (median period {h:g} s, max deviation "
-                         f"{float(np.max(np.abs(dt - h))):g} s)")
+    dev = np.abs(dt - h)
+    if np.max(dev) > 0.01 * h:
+        i = int(np.argmax(dev)) + 1
+        raise ValueError(f"{where(i)}: t = {float(t[i])!r} s is {float(dt[i - 1])!r} s after the previous "
+                         f"sample; the audit needs evenly spaced samples (median period {h:g} s, 1 % "
+                         "tolerance; no gaps)")
     base = config or RigConfig()
     return base.model_copy(update={"sample_rate": 1.0 / h})
 
 
 def load(path: str, rig: str | None = None):
-    """``(config, samples)`` from a CSV or MCAP file."""
+    """``(config, samples)`` from a CSV or MCAP file; a ValueError (FileNotFoundError) names
+    the file and what is wrong with it."""
     p = Path(path)
+    name = str(p)
     if not p.exists():
-        raise FileNotFoundError(path)
+        raise FileNotFoundError(f"{name}: no such file")
+    if p.is_dir():
+        raise ValueError(f"{name}: is a directory; give a .csv or .mcap file")
     if p.suffix.lower() == ".mcap":
         from hydromon import mcap_io
 
-        with open(p, "rb") as f:
-            rig_id, data, _ = mcap_io.read_samples(f, rig)
+        try:
+            rig_id, data, _ = mcap_io.read_samples(str(p), rig)
+        except ValueError as exc:
+            msg = str(exc).replace("; choose one", "; choose one with --rig ID")
+            raise ValueError(msg if msg.startswith(name) else f"{name}: {msg}") from None
         config = None
         try:
-            with open(p, "rb") as f:
-                config = mcap_io.read_rig_config(f, rig_id)
+            config = mcap_io.read_rig_config(str(p), rig_id)
         except ValueError:
             print(f"hydromon audit: no rig config for {rig_id!r} in the recording; using the paper's",
                   file=sys.stderr)
-        return _config_for(data[:, 0], config), data[:, 1:]
-    with open(p, newline="") as f:
-        t, samples = read_csv(f)
-    return _config_for(t), samples
+        return _config_for(data[:, 0], config, f"{name} rig {rig_id!r}",
+                           lambda i: f"{name} rig {rig_id!r} sample {i}"), data[:, 1:]
+    if rig is not None:
+        raise ValueError("--rig selects a rig of an MCAP recording; a CSV holds one rig")
+    t, samples = read_csv(p)
+    return _config_for(t, None, name, lambda i: f"{name} line {i + 2}"), samples
 
 
 def run(args) -> int:
     from hydromon.audit_report import summary, to_json, write_report
+    from hydromon.commands._checks import writable_dir
     from monitor.audit import AuditOptions, audit
 
+    try:  # the options first, then the file
+        options = AuditOptions(train_fraction=args.train_fraction)
+    except ValueError as exc:
+        raise ValueError(f"--train-fraction {args.train_fraction!r}: {exc}") from None
+    if args.report:
+        writable_dir("--report", args.report)
     config, samples = load(args.file, args.rig)
-    result = audit(samples, config, AuditOptions(train_fraction=args.train_fraction))
+    result = audit(samples, config, options)
     if args.report:
         path = write_report(result, args.report)
         print(f"hydromon audit: report -> {path}", file=sys.stderr)

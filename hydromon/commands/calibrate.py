@@ -51,11 +51,17 @@ def run(args) -> int:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from hydromon.commands._checks import writable_file
     from monitor.calibrate import calibrate, simulate_runs
     from monitor.grading import Ranges
+    from plant_sim.noise import noise_model
+    from plant_sim.params import RigConfig
 
     if args.runs < 10:
         raise ValueError(f"--runs {args.runs}: need at least 10 runs (two per label)")
+    noise_model(args.noise, RigConfig())  # a bad model fails here, not after the bar appears
+    if args.out != "-":
+        writable_file("--out", args.out)  # here, not after minutes of runs
     err = Console(stderr=True)
     with Progress(TextColumn("simulate + identify"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=err) as prog:

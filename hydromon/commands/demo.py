@@ -26,11 +26,15 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from hydromon.commands import _checks
+    from hydromon.contract import _check_ns
     from hydromon.demo import run_demo, summary
     from hydromon.fleetfile import default_fleet, load_fleet
 
-    if args.duration < 0:
-        raise ValueError(f"--duration {args.duration} must be >= 0 s")
+    _checks.non_negative("--duration", args.duration, unit="s")
+    _checks.non_negative("--rate", args.rate)
+    _check_ns(args.namespace)
+    _checks.writable_dir("--out", args.out)
     spec = load_fleet(args.fleet) if args.fleet else default_fleet()
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}

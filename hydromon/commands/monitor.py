@@ -31,12 +31,19 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from hydromon.monitornode import MonitorCore, RateLimitedLog, log_rig_warning, run_monitor
+    from hydromon.commands import _checks
+    from hydromon.contract import liveliness_key
+    from hydromon.monitornode import MonitorCore, RateLimitedLog, log_rig_warning, rig_pattern, run_monitor
 
-    if args.duration is not None and not args.duration > 0:
-        raise ValueError(f"--duration {args.duration} must be > 0 s")
-    if args.threads < 1:
-        raise ValueError(f"--threads {args.threads} must be >= 1")
+    # every option is checked here, before the bus opens and the banner is printed
+    _checks.positive("--duration", args.duration)
+    _checks.at_least("--eval-every", args.eval_every, 1)
+    _checks.at_least("--threads", args.threads, 1)
+    liveliness_key(args.node, args.namespace)  # the node name and the namespace
+    try:
+        rig_pattern(args.rigs)
+    except ValueError as exc:
+        raise ValueError(f"--rigs: {exc}") from None
     ranges = ranges_from_args(args)  # a bad file fails here, before the bus
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
                        on_warning=log_rig_warning, threads=args.threads, ranges=ranges)

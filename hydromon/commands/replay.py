@@ -39,12 +39,35 @@ def add_arguments(parser) -> None:
     add_bus_arguments(parser)
 
 
+def check_args(args) -> None:
+    """Every option's check, before the recording is read, the bus opened or a bar shown."""
+    from hydromon.commands import _checks
+    from hydromon.contract import _check_ns
+    from hydromon.replay import KeyFilter
+
+    _checks.non_negative("--rate", args.rate)
+    _checks.non_negative("--start", args.start, unit="s")
+    _checks.non_negative("--duration", args.duration, unit="s")
+    _checks.non_negative("--wait", args.wait, unit="s")
+    _check_ns(args.namespace)
+    KeyFilter(args.keys)  # a bad --keys expression
+    if args.direct:
+        if args.loop:
+            raise ValueError("--loop has no meaning with --direct")
+        if args.out:
+            _checks.writable_file("--out", args.out)
+    else:
+        if args.out:
+            raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
+        if args.ranges is not None:
+            raise ValueError("--ranges goes with --direct (a bus replay publishes samples; the monitor grades them)")
+
+
 def _direct(args) -> int:
+    from hydromon.commands._checks import replace_on_success
     from hydromon.monitornode import RateLimitedLog, MonitorCore
     from hydromon.replay import NothingToReplay, check_window, health_jsonl, nothing_graded, replay_direct
 
-    if args.loop:
-        raise ValueError("--loop has no meaning with --direct")
     check_window(args.file, keys=args.keys, start=args.start, namespace=args.namespace)
     core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges_from_args(args))
     health, core = replay_direct(args.file, keys=args.keys, start=args.start, duration=args.duration,
@@ -53,7 +76,7 @@ def _direct(args) -> int:
     if why:
         raise NothingToReplay(why)  # before --out: no empty health file
     if args.out:
-        with open(args.out, "wb") as f:
+        with replace_on_success(args.out, "wb") as f:
             f.writelines(health_jsonl(health))
     else:
         out = sys.stdout.buffer
@@ -76,12 +99,9 @@ def _direct(args) -> int:
 
 
 def run(args) -> int:
+    check_args(args)
     if args.direct:
         return _direct(args)
-    if args.out:
-        raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
-    if args.ranges is not None:
-        raise ValueError("--ranges goes with --direct (a bus replay publishes samples; the monitor grades them)")
     from hydromon.replay import NothingToReplay, check_window, recording_span, replay_bus
 
     check_window(args.file, keys=args.keys, start=args.start)  # a bad file fails here, before the session opens

@@ -24,8 +24,11 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from hydromon.commands._checks import writable_dir
     from hydromon.reproduce import plot, render, reproduce, to_json
 
+    if args.plots:
+        writable_dir("--plots", args.plots)  # before the tables are computed
     rep = reproduce(noise=args.noise, seeds=args.seeds, calibration_runs=args.calibration_runs,
                     refined=args.refine)
     if args.plots:

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import threading
+from contextlib import ExitStack
 
 from hydromon.bus import add_bus_arguments, session_from_args
 
@@ -35,10 +37,14 @@ def add_arguments(parser) -> None:
                    help="speed relative to real time, 0 = as fast as possible (default 1)")
     r.add_argument("--duration", type=float, default=None, metavar="S",
                    help="rig time to simulate [s] (default: until Ctrl-C; required with --to-*)")
-    r.add_argument("--block", type=int, default=None, metavar="K", help="samples per rig per step (default 10)")
-    r.add_argument("--to-csv", metavar="FILE", help="write one rig's run as CSV t,ug,x1,x3,x4,x5 (SI), no bus")
-    r.add_argument("--to-mcap", metavar="FILE", help="write the fleet's run as an MCAP recording, no bus")
-    r.add_argument("--rig", metavar="ID", help="with --to-csv: which rig of the fleet")
+    r.add_argument("--block", type=int, default=None, metavar="K",
+                   help="samples per rig per step, >= 1 (default 10)")
+    r.add_argument("--to-csv", metavar="FILE", help="write one rig's run as CSV t,ug,x1,x3,x4,x5 (SI), no bus "
+                   "(written to a temporary file beside FILE, renamed into place when complete)")
+    r.add_argument("--to-mcap", metavar="FILE", help="write the fleet's run as an MCAP recording, no bus "
+                   "(likewise written whole or not at all)")
+    r.add_argument("--rig", metavar="ID", help="with --to-csv/--to-mcap: write only this rig of the fleet "
+                   "(--to-csv needs it when the fleet has several)")
     add_bus_arguments(parser)
 
 
@@ -66,30 +72,64 @@ def build_fleet(args):
                                effects=effects, sensor_delay_loop=args.sensor_delay_loop)
 
 
+def check_args(args, spec) -> None:
+    """Every option's check, before a file or the bus is touched (ValueError names the option)."""
+    from hydromon import simnode
+    from hydromon.commands import _checks
+    from hydromon.contract import _check_ns
+
+    _checks.non_negative("--rate", args.rate)
+    _checks.positive("--duration", args.duration)
+    _checks.at_least("--block", args.block, 1)
+    _check_ns(args.namespace)
+    if not (args.to_csv or args.to_mcap):
+        if args.rig:
+            raise ValueError("--rig selects the rig of --to-csv/--to-mcap")
+        return
+    if args.duration is None:
+        raise ValueError("--to-csv/--to-mcap need --duration S")
+    h = spec.config.h
+    if round(args.duration / h) < 1:
+        raise ValueError(f"--duration {args.duration!r} s is shorter than one sample ({h:g} s)")
+    if args.to_csv and args.to_mcap and os.path.abspath(args.to_csv) == os.path.abspath(args.to_mcap):
+        raise ValueError(f"--to-csv and --to-mcap name the same file {args.to_csv!r}")
+    if args.to_csv:
+        simnode.select_rig(spec, args.rig)
+        _checks.writable_file("--to-csv", args.to_csv)
+    if args.to_mcap:
+        if args.rig:
+            simnode.select_rig(spec, args.rig)
+        _checks.writable_file("--to-mcap", args.to_mcap)
+
+
 def run(args) -> int:
     from pydantic import ValidationError
 
     from hydromon import simnode
+    from hydromon.commands._checks import replace_on_success
     from hydromon.fleetfile import brief_error
 
     try:
         spec = build_fleet(args)
     except ValidationError as exc:
         raise ValueError(brief_error(exc)) from None
+    check_args(args, spec)
     if args.to_csv or args.to_mcap:
-        if args.duration is None:
-            raise ValueError("--to-csv/--to-mcap need --duration S")
-        if args.to_csv:
-            with open(args.to_csv, "w", newline="") as f:
+        # each file is written beside its place and renamed into it once complete: an error
+        # (or Ctrl-C) leaves the old file, if any, as it was
+        with ExitStack() as files:
+            if args.to_csv:
+                f = files.enter_context(replace_on_success(args.to_csv, "w", newline=""))
                 rows = simnode.write_csv(spec, args.duration, f, rig=args.rig)
+            if args.to_mcap:
+                one = simnode.select_rig(spec, args.rig) if args.rig else spec
+                f = files.enter_context(replace_on_success(args.to_mcap, "wb"))
+                n = simnode.write_mcap(one, args.duration, f, namespace=args.namespace)
+        if args.to_csv:
             print(f"hydromon sim: {rows} samples of 1 rig -> {args.to_csv}", file=sys.stderr)
         if args.to_mcap:
-            with open(args.to_mcap, "wb") as f:
-                n = simnode.write_mcap(spec, args.duration, f, namespace=args.namespace)
-            print(f"hydromon sim: {n} messages of {len(spec.rigs)} rig(s) -> {args.to_mcap}", file=sys.stderr)
+            print(f"hydromon sim: {n} messages of {len(one.rigs)} rig(s) -> {args.to_mcap}", file=sys.stderr)
         return 0
-    if args.rig:
-        raise ValueError("--rig selects the rig of --to-csv")
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -98,7 +138,7 @@ def run(args) -> int:
                   f"{'max speed' if args.rate == 0 else f'{args.rate:g}x real time'}", file=sys.stderr, flush=True)
             stats = simnode.run_sim(session, spec, namespace=args.namespace, rate=args.rate,
                                     duration=args.duration, stop_event=stop,
-                                    block=args.block or simnode.DEFAULT_BLOCK)
+                                    block=simnode.DEFAULT_BLOCK if args.block is None else args.block)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

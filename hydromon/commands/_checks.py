@@ -1,0 +1,101 @@
+"""Argument checks the commands share, run before any side effect (files, bus, banners, work),
+and the all-or-nothing file write of the commands that write one result file.
+
+Every check raises ValueError with a one-line message naming the option; ``hydromon.cli``
+prints it as ``hydromon CMD: error: ...`` and exits with 2.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+
+def positive(option: str, value: float | None, *, unit: str = "s") -> None:
+    """``value`` (None = not given) must be a finite number > 0."""
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{option} {value!r} must be a finite number > 0{' ' + unit if unit else ''}")
+
+
+def non_negative(option: str, value: float | None, *, unit: str = "") -> None:
+    """``value`` (None = not given) must be a finite number >= 0."""
+    if value is not None and not (math.isfinite(value) and value >= 0):
+        raise ValueError(f"{option} {value!r} must be a finite number >= 0{' ' + unit if unit else ''}")
+
+
+def at_least(option: str, value: int | None, low: int) -> None:
+    """An integer option (None = not given) must be >= ``low``."""
+    if value is not None and value < low:
+        raise ValueError(f"{option} {value!r} must be >= {low}")
+
+
+def writable_file(option: str, path: str | os.PathLike) -> None:
+    """``path`` can be written as a file: not a directory, its directory exists and is writable."""
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{option} {str(p)!r} is a directory; give a file name")
+    if p.exists() and not p.is_file():  # a device or pipe, e.g. /dev/stdout: written in place
+        if not os.access(p, os.W_OK):
+            raise ValueError(f"{option} {str(p)!r} is not writable")
+        return
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.exists():
+        raise ValueError(f"{option} {str(p)!r}: directory {str(parent)!r} does not exist")
+    if not parent.is_dir():
+        raise ValueError(f"{option} {str(p)!r}: {str(parent)!r} is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {str(p)!r}: directory {str(parent)!r} is not writable")
+    if p.exists() and not os.access(p, os.W_OK):
+        raise ValueError(f"{option} {str(p)!r} is not writable")
+
+
+def writable_dir(option: str, path: str | os.PathLike) -> None:
+    """``path`` is a writable directory, or can be created as one (its nearest existing
+    ancestor is a writable directory)."""
+    p = Path(path)
+    if p.exists():
+        if not p.is_dir():
+            raise ValueError(f"{option} {str(p)!r} exists and is not a directory")
+        if not os.access(p, os.W_OK | os.X_OK):
+            raise ValueError(f"{option} {str(p)!r}: directory is not writable")
+        return
+    ancestor = p.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ValueError(f"{option} {str(p)!r}: {str(ancestor)!r} is not a directory")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {str(p)!r}: cannot create it, {str(ancestor)!r} is not writable")
+
+
+@contextmanager
+def replace_on_success(path: str | os.PathLike, mode: str = "w", **open_kw):
+    """Open a temporary file beside ``path``; on a clean exit it replaces ``path`` atomically,
+    on an exception it is removed, so ``path`` is never left truncated or half written and
+    an existing file is only replaced by a complete one. A symbolic link's target is
+    replaced; a device or pipe (``/dev/stdout``) is written in place."""
+    if Path(path).exists() and not Path(path).is_file():
+        with open(path, mode, **open_kw) as f:
+            yield f
+        return
+    p = Path(os.path.realpath(path))
+    fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.name}.", suffix=".part")
+    try:
+        with os.fdopen(fd, mode, **open_kw) as f:
+            yield f
+        if p.exists():
+            os.chmod(tmp, p.stat().st_mode & 0o7777)  # keep the replaced file's permissions
+        else:
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a new file gets open()'s mode
+        os.replace(tmp, p)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise

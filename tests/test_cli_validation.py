@@ -1,0 +1,265 @@
+"""Command-line validation: options are checked before any side effect (file, bus, banner,
+long work), an error is one line on stderr with exit status 2, and a failed run never
+truncates, half-writes or replaces a user's file."""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+
+import numpy as np
+import pytest
+
+from hydromon.cli import main
+
+pytestmark = pytest.mark.timeout(60)
+
+KEEP = "t,ug,x1,x3,x4,x5\n0.0,1.0,2.0,3.0,4.0,5.0\n"
+
+
+def one_error_line(capsys, command: str, *needles: str) -> str:
+    """stderr is exactly one line ``hydromon COMMAND: error: ...`` holding every needle; stdout empty."""
+    cap = capsys.readouterr()
+    err = cap.err.strip()
+    assert cap.out == ""
+    assert "\n" not in err, err
+    assert err.startswith(f"hydromon {command}: error: "), err
+    for n in needles:
+        assert n in err, (n, err)
+    return err
+
+
+def no_leftovers(directory) -> None:
+    assert not [p for p in os.listdir(directory) if p.endswith(".part")]
+
+
+@pytest.fixture
+def no_bus(monkeypatch):
+    """Opening a zenoh session fails the test: every check must come first."""
+    def refuse(*_a, **_k):
+        raise AssertionError("the bus was opened before the options were checked")
+
+    for mod in ("sim", "monitor", "replay"):
+        monkeypatch.setattr(f"hydromon.commands.{mod}.session_from_args", refuse)
+
+
+# -- 1. sim --to-csv / --to-mcap: no data loss ---------------------------------------------
+
+@pytest.mark.parametrize("extra, needle", [
+    ([], "choose one (--rig ID)"),
+    (["--rig", "nope"], "no rig 'nope' in the fleet"),
+    (["--rig", "table4-g1", "--duration", "inf"], "--duration inf must be a finite number > 0 s"),
+    (["--rig", "table4-g1", "--duration", "0.001"], "shorter than one sample"),
+])
+def test_sim_to_csv_error_keeps_the_existing_file(tmp_path, capsys, extra, needle):
+    keep = tmp_path / "keep.csv"
+    keep.write_text(KEEP)
+    args = ["sim", "--to-csv", str(keep), "--duration", "10", *extra]
+    assert main(args) == 2
+    one_error_line(capsys, "sim", needle)
+    assert keep.read_text() == KEEP
+    no_leftovers(tmp_path)
+
+
+@pytest.mark.parametrize("duration", ["inf", "nan", "0", "-1"])
+def test_sim_to_mcap_bad_duration_keeps_the_existing_file(tmp_path, capsys, duration):
+    precious = tmp_path / "precious.mcap"
+    precious.write_bytes(b"precious")
+    assert main(["sim", "--to-mcap", str(precious), "--duration", duration]) == 2
+    one_error_line(capsys, "sim", f"--duration {float(duration)!r} must be a finite number > 0 s")
+    assert precious.read_bytes() == b"precious"
+    no_leftovers(tmp_path)
+
+
+@pytest.mark.parametrize("failure, status", [(RuntimeError("disk on fire"), None), (KeyboardInterrupt(), 130)])
+def test_sim_failure_mid_write_leaves_the_old_file(tmp_path, monkeypatch, failure, status):
+    from hydromon import simnode
+
+    def half_then_fail(spec, duration, stream, namespace="hydro"):
+        stream.write(b"\x89MCAP0\r\n half a recording")
+        raise failure
+
+    monkeypatch.setattr(simnode, "write_mcap", half_then_fail)
+    precious = tmp_path / "precious.mcap"
+    precious.write_bytes(b"precious")
+    args = ["sim", "--to-mcap", str(precious), "--duration", "1"]
+    if status is None:
+        with pytest.raises(RuntimeError):
+            main(args)
+    else:
+        assert main(args) == status
+    assert precious.read_bytes() == b"precious"
+    no_leftovers(tmp_path)
+
+
+def test_sim_success_replaces_the_file_keeping_its_mode(tmp_path, capsys):
+    out = tmp_path / "run.csv"
+    out.write_text("old\n" * 1000)
+    out.chmod(0o640)
+    assert main(["sim", "--rigs", "1", "--duration", "0.05", "--to-csv", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert lines[0] == "t,ug,x1,x3,x4,x5" and len(lines) == 6
+    assert out.stat().st_mode & 0o777 == 0o640
+    no_leftovers(tmp_path)
+    new = tmp_path / "new.csv"
+    assert main(["sim", "--rigs", "1", "--duration", "0.05", "--to-csv", str(new)]) == 0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert new.stat().st_mode & 0o777 == 0o666 & ~umask  # as open() would have made it
+
+
+def test_sim_to_mcap_honours_rig(tmp_path, capsys):
+    from hydromon import mcap_io
+
+    whole, one = tmp_path / "whole.mcap", tmp_path / "one.mcap"
+    assert main(["sim", "--to-mcap", str(whole), "--duration", "0.1"]) == 0
+    assert main(["sim", "--to-mcap", str(one), "--duration", "0.1", "--rig", "table4-g3"]) == 0
+    assert "11 messages of 1 rig(s)" in capsys.readouterr().err
+    rig, data, _ = mcap_io.read_samples(str(one))  # one rig: no --rig needed
+    assert rig == "table4-g3"
+    _, ref, _ = mcap_io.read_samples(str(whole), rig="table4-g3")
+    np.testing.assert_array_equal(data, ref)  # the run it has in the whole fleet's
+    assert mcap_io.read_rig_config(str(one), "table4-g3") is not None
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--to-csv", "{d}/no/such/dir/x.csv", "--rigs", "1"], "directory '{d}/no/such/dir' does not exist"),
+    (["--to-csv", "{d}", "--rigs", "1"], "is a directory"),
+    (["--to-csv", "{d}/a", "--to-mcap", "{d}/a", "--rigs", "1"], "name the same file"),
+    (["--to-mcap", "{d}/x.mcap", "--block", "0"], "--block 0 must be >= 1"),
+])
+def test_sim_file_errors(tmp_path, capsys, args, needle):
+    d = str(tmp_path)
+    assert main(["sim", "--duration", "1", *[a.format(d=d) for a in args]]) == 2
+    one_error_line(capsys, "sim", needle.format(d=d))
+    assert os.listdir(tmp_path) == []
+
+
+def test_sim_simnode_refuses_an_infinite_duration():
+    from hydromon import simnode
+    from hydromon.fleetfile import default_fleet
+
+    with pytest.raises(ValueError, match="finite"):
+        simnode.write_csv(default_fleet(), math.inf, io.StringIO(), rig="table4-g1")
+    buf = io.BytesIO()
+    with pytest.raises(ValueError, match="finite"):
+        simnode.write_mcap(default_fleet(), math.inf, buf)
+    assert buf.getvalue() == b""  # nothing written before the check
+
+
+# -- 2. calibrate: --out and --noise before the runs ---------------------------------------
+
+@pytest.fixture
+def no_runs(monkeypatch):
+    def refuse(*_a, **_k):
+        raise AssertionError("runs simulated before the options were checked")
+
+    monkeypatch.setattr("monitor.calibrate.simulate_runs", refuse)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--out", "/nonexistdir2/x.json"], "--out '/nonexistdir2/x.json': directory '/nonexistdir2' does not exist"),
+    (["--out", "{d}"], "is a directory; give a file name"),
+    (["--noise", "bogus", "--out", "-"], "unknown noise model 'bogus'"),
+    (["--noise", "pct:200", "--out", "-"], "percentage must lie in [0, 100)"),
+])
+def test_calibrate_checks_before_the_runs(tmp_path, capsys, no_runs, args, needle):
+    assert main(["calibrate", "--runs", "200", *[a.format(d=tmp_path) for a in args]]) == 2
+    one_error_line(capsys, "calibrate", needle)
+
+
+# -- 3. demo --out ---------------------------------------------------------------------------
+
+@pytest.fixture
+def no_demo(monkeypatch):
+    def refuse(*_a, **_k):
+        raise AssertionError("demo started before the options were checked")
+
+    monkeypatch.setattr("hydromon.demo.run_demo", refuse)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--out", "{d}/file.txt"], "--out '{d}/file.txt' exists and is not a directory"),
+    (["--out", "{d}/file.txt/sub"], "'{d}/file.txt' is not a directory"),
+    (["--duration", "-1"], "--duration -1.0 must be a finite number >= 0 s"),
+    (["--rate", "-1"], "--rate -1.0 must be a finite number >= 0"),
+])
+def test_demo_checks_out_and_numbers(tmp_path, capsys, no_demo, args, needle):
+    (tmp_path / "file.txt").write_text("mine")
+    assert main(["demo", *[a.format(d=tmp_path) for a in args]]) == 2
+    one_error_line(capsys, "demo", needle.format(d=tmp_path))
+    assert (tmp_path / "file.txt").read_text() == "mine"
+
+
+# -- 4. audit: errors name the file and the problem -----------------------------------------
+
+@pytest.mark.parametrize("name, text, needle", [
+    ("dup.csv", "t,ug,x1,x3,x4,x5\n0,0,0,0,0,0\n0,0,0,0,0,0\n0.02,0,0,0,0,0\n",
+     "dup.csv line 3: t = 0.0 s does not increase strictly"),
+    ("empty.csv", "", "empty.csv: empty file; expected a header t,ug,x1,x3,x4,x5"),
+    ("hdr.csv", "a,b\n1,2\n", "hdr.csv line 1: header 'a,b' lacks column(s)"),
+    ("nan.csv", "t,ug,x1,x3,x4,x5\n0,0,0,0,0,0\n0.01,0,x,0,0,0\n", "nan.csv line 3: x1 = 'x' is not a number"),
+    ("gap.csv", "t,ug,x1,x3,x4,x5\n" + "".join(f"{0.01 * i!r},0,0,0,0,0\n" for i in (0, 1, 2, 3, 5, 6)),
+     "gap.csv line 6: t = 0.05"),
+    ("bad.mcap", "junk", "bad.mcap: not an MCAP file"),
+])
+def test_audit_errors_name_file_and_problem(tmp_path, capsys, name, text, needle):
+    p = tmp_path / name
+    p.write_text(text)
+    assert main(["audit", str(p)]) == 2
+    err = one_error_line(capsys, "audit", needle)
+    assert err.count(name) == 1  # named once, not twice
+
+
+def test_audit_missing_file_and_misplaced_rig(tmp_path, capsys):
+    assert main(["audit", str(tmp_path / "x.mcap")]) == 2
+    one_error_line(capsys, "audit", f"{tmp_path / 'x.mcap'}: no such file")
+    p = tmp_path / "a.csv"
+    p.write_text("t,ug,x1,x3,x4,x5\n0,0,0,0,0,0\n0.01,0,0,0,0,0\n")
+    assert main(["audit", str(p), "--rig", "g1"]) == 2
+    one_error_line(capsys, "audit", "--rig selects a rig of an MCAP recording")
+    assert main(["audit", str(p), "--train-fraction", "2"]) == 2
+    one_error_line(capsys, "audit", "--train-fraction 2.0")
+
+
+# -- 5. monitor, sim, replay, reproduce: checked before the bus, the banner or the work -------
+
+@pytest.mark.parametrize("command, args, needle", [
+    ("monitor", ["--eval-every", "-1"], "--eval-every -1 must be >= 1"),
+    ("monitor", ["--eval-every", "0"], "--eval-every 0 must be >= 1"),
+    ("monitor", ["--rigs", ""], "--rigs: rig pattern ''"),
+    ("monitor", ["--duration", "inf"], "--duration inf must be a finite number > 0 s"),
+    ("monitor", ["--node", "a b"], "node name 'a b'"),
+    ("sim", ["--rate", "-1"], "--rate -1.0 must be a finite number >= 0"),
+    ("sim", ["--block", "0"], "--block 0 must be >= 1"),
+    ("sim", ["--block", "-5"], "--block -5 must be >= 1"),
+    ("sim", ["--duration", "inf"], "--duration inf must be a finite number > 0 s"),
+    ("sim", ["--rig", "table4-g1"], "--rig selects the rig of --to-csv/--to-mcap"),
+    ("sim", ["--namespace", "a b"], "namespace 'a b'"),
+    ("replay", ["{d}/r.mcap", "--duration", "-5"], "--duration -5.0 must be a finite number >= 0 s"),
+    ("replay", ["{d}/r.mcap", "--rate", "-1"], "--rate -1.0 must be a finite number >= 0"),
+    ("replay", ["{d}/r.mcap", "--start", "nan"], "--start nan must be a finite number >= 0 s"),
+    ("replay", ["{d}/r.mcap", "--keys", "a/**/**x"], "--keys 'a/**/**x'"),
+    ("replay", ["{d}/r.mcap", "--direct", "--out", "{d}/no/x.jsonl"], "directory '{d}/no' does not exist"),
+])
+def test_checked_before_bus_and_banner(tmp_path, capsys, no_bus, command, args, needle):
+    assert main([command, *[a.format(d=tmp_path) for a in args]]) == 2
+    one_error_line(capsys, command, needle.format(d=tmp_path))
+
+
+def test_reproduce_rejects_negative_calibration_runs(capsys, monkeypatch):
+    def refuse(*_a, **_k):
+        raise AssertionError("tables computed before the options were checked")
+
+    monkeypatch.setattr("hydromon.reproduce._table2", refuse)
+    for n in ("-1", "5"):
+        assert main(["reproduce", "--calibration-runs", n]) == 2
+        one_error_line(capsys, "reproduce", f"--calibration-runs {n}: 0 (our default ranges) or at least 10")
+
+
+def test_monitor_core_names_eval_every():
+    from hydromon.monitornode import MonitorCore
+
+    with pytest.raises(ValueError, match="eval_every -1 must be >= 1"):
+        MonitorCore("hydro", eval_every=-1)
