@@ -55,8 +55,10 @@ _COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none"
 _U64 = 2**64
 
 # what a damaged file can make the mcap library raise while decoding
+# what the mcap library raises on damaged bytes (a flipped bit in a length field gives an
+# OverflowError from its stream reader, or a MemoryError for a huge allocation)
 _DECODE_ERRORS = (McapError, ValueError, KeyError, struct.error, EOFError, zstandard.ZstdError,
-                  RuntimeError)
+                  RuntimeError, OverflowError, MemoryError)
 
 
 class RecordingError(ValueError):

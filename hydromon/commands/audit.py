@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hydromon.commands._rigconfig import add_config_argument, config_from_args
+
 NAME = "audit"
 HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named model extension explains it"
 
@@ -15,6 +17,7 @@ HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named mode
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE", help="CSV with header t,ug,x1,x3,x4,x5 (SI) or an MCAP recording")
     parser.add_argument("--rig", metavar="ID", help="MCAP: which rig (needed if it holds several)")
+    add_config_argument(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON document on stdout")
     parser.add_argument("--report", metavar="DIR", help="write audit.md and PNG plots into DIR")
     parser.add_argument("--train-fraction", type=float, default=0.7,
@@ -54,7 +57,7 @@ def _config_for(t: np.ndarray, config=None, name: str = "<record>", where=lambda
     return base.model_copy(update={"sample_rate": 1.0 / h})
 
 
-def load(path: str, rig: str | None = None):
+def load(path: str, rig: str | None = None, config=None):
     """``(config, samples)`` from a CSV or MCAP file; a ValueError (FileNotFoundError) names
     the file and what is wrong with it."""
     p = Path(path)
@@ -71,18 +74,21 @@ def load(path: str, rig: str | None = None):
         except ValueError as exc:
             msg = str(exc).replace("; choose one", "; choose one with --rig ID")
             raise ValueError(msg if msg.startswith(name) else f"{name}: {msg}") from None
-        config = None
-        try:
-            config = mcap_io.read_rig_config(str(p), rig_id)
-        except ValueError:
-            print(f"hydromon audit: no rig config for {rig_id!r} in the recording; using the paper's",
-                  file=sys.stderr)
+        if config is None:
+            try:
+                config = mcap_io.read_rig_config(str(p), rig_id)
+            except ValueError:
+                print(f"hydromon audit: no rig config for {rig_id!r} in the recording; using the paper's",
+                      file=sys.stderr)
         return _config_for(data[:, 0], config, f"{name} rig {rig_id!r}",
                            lambda i: f"{name} rig {rig_id!r} sample {i}"), data[:, 1:]
     if rig is not None:
         raise ValueError("--rig selects a rig of an MCAP recording; a CSV holds one rig")
     t, samples = read_csv(p)
-    return _config_for(t, None, name, lambda i: f"{name} line {i + 2}"), samples
+    if config is None:
+        print(f"hydromon audit: {name}: the paper's rig constants (a CSV carries none; give yours with --config FILE)",
+              file=sys.stderr)
+    return _config_for(t, config, name, lambda i: f"{name} line {i + 2}"), samples
 
 
 def run(args) -> int:
@@ -96,7 +102,7 @@ def run(args) -> int:
         raise ValueError(f"--train-fraction {args.train_fraction!r}: {exc}") from None
     if args.report:
         writable_dir("--report", args.report)
-    config, samples = load(args.file, args.rig)
+    config, samples = load(args.file, args.rig, config_from_args(args))
     result = audit(samples, config, options)
     if args.report:
         path = write_report(result, args.report)

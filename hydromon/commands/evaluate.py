@@ -6,6 +6,7 @@ import json
 import sys
 
 from hydromon.commands._ranges import add_ranges_argument, ranges_from_args
+from hydromon.commands._rigconfig import add_config_argument, config_from_args, constants_line
 
 NAME = "evaluate"
 HELP = "grade one recording (.mcap, or .csv with columns t,ug,x1,x3,x4,x5 in SI units)"
@@ -16,6 +17,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--json", action="store_true",
                         help='print {"grade","level","confidence","status","params","std_errors"} on stdout')
     parser.add_argument("--rig", metavar="ID", help="which rig of a multi-rig MCAP recording")
+    add_config_argument(parser)
     add_ranges_argument(parser)
     parser.add_argument("--refine", action="store_true",
                         help="also fit the force and chamber parameters to the whole record by prediction error "
@@ -30,10 +32,14 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from hydromon.evaluate import evaluate, load_recording, render, to_json
 
+    from pathlib import Path
+
     ranges = ranges_from_args(args)
-    rec = load_recording(args.file, rig=args.rig)
+    config = config_from_args(args)
+    rec = load_recording(args.file, rig=args.rig, config=config)
     skipped = f" ({rec.skipped} before its last config change skipped)" if rec.skipped else ""
-    print(f"hydromon evaluate: {rec.source}: rig {rec.rig}, {len(rec.samples)} samples{skipped}", file=sys.stderr)
+    print(f"hydromon evaluate: {rec.source}: rig {rec.rig}, {len(rec.samples)} samples{skipped}; "
+          f"{constants_line(rec.config, config is not None, Path(args.file).suffix.lower())}", file=sys.stderr)
     if args.refine:
         print(f"hydromon evaluate: refining over {len(rec.samples) / rec.config.sample_rate:g} s of data "
               f"(about {0.1 * len(rec.samples) / rec.config.sample_rate:.0f} s)", file=sys.stderr)

@@ -264,10 +264,10 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     test = slice(split, sig.n)
     measured = s[:, 1:]
 
-    fr_nom, sim_nom, nom_diverged = None, None, False
+    fr_nom, sim_nom = None, None
     if opt.free_run:
         run = free_run(s, cfg, p_nom, v0=float(sig.vl[0]))
-        sim_nom, nom_diverged = run.measured, run.diverged
+        sim_nom = run.measured
         fr_nom = channel_scores(measured, sim_nom, test)
 
     def fit_at(cand, value):
@@ -359,11 +359,10 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     top = results[0]
     cause, confident, note = "none", True, ""
     impossible = impossible_params(p_nom)
-    if impossible or nom_diverged:
+    if impossible:
         # no extension explains a record that does not obey the model at all (wrong units, signs,
         # zeros or rig constants): naming one would be confidently wrong
-        why = (f"impossible estimates ({', '.join(f'{k} = {p_nom[k]:.3g}' for k in impossible)}; each must be "
-               "positive)" if impossible else "the nominal model's free run diverges")
+        why = f"impossible estimates ({', '.join(f'{k} = {p_nom[k]:.3g}' for k in impossible)}; each must be positive)"
         note = (f"the record does not obey the model: {why}; check the units (SI: m, Pa, V), the signs and zeros "
                 "of x1, x3, x4, x5 and ug, and the rig constants")
         confident = False
