@@ -422,11 +422,12 @@ def render(ev: Evaluation, console=None) -> None:
     graded = ev.ranges.params if ev.ranges is not None else {}
     if "K_sv" in graded and "K_sv_omega_sv2" not in graded:
         w2, s = a.params["omega_sv2"], a.std_errors["omega_sv2"]
-        how = (f"here omega^2 +-{100 * s / abs(w2):.2g} %" if math.isfinite(s) and math.isfinite(w2) and w2
-               else "here omega^2 has no SE")
-        console.print(f"[dim]the valve is graded on its static gain K_sv; K_sv omega^2 is reported, not graded: it "
-                      f"needs the valve's dynamics excited, which a record that starts mid-run on a smooth command "
-                      f"lacks ({how}); --ranges paper grades it as Table 3 prints it[/dim]")
+        rel = s / abs(w2) if math.isfinite(s) and math.isfinite(w2) and w2 else math.inf
+        why = ("" if rel < 0.05 else  # the reason matters where it shows: an unexcited valve
+               f": it needs the valve's dynamics excited, which a record that starts mid-run on a smooth command "
+               f"lacks (here omega^2 {'has no SE' if math.isinf(rel) else f'+-{100 * rel:.2g} %'})")
+        console.print(f"[dim]the valve is graded on its static gain K_sv; K_sv omega^2 is reported, not graded{why}; "
+                      "--ranges paper grades it as Table 3 prints it[/dim]")
     if r.config_changes:
         console.print(f"[yellow]the rig's config changed {r.config_changes} time(s): evaluated the samples after the "
                       f"last change (sample {r.skipped}, t = {r.t[0]:g} s) with its constants, as the live monitor "

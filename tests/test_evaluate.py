@@ -338,3 +338,19 @@ def test_cli_ranges_choose_what_grades_the_valve(g4_csv, capsys, tmp_path):
     for bad in (tmp_path / "missing.json", tmp_path, tmp_path / "latin1.json"):
         assert main(["evaluate", str(g4_csv), "--ranges", str(bad)]) == 2
         assert f"ranges file '{bad}'" in capsys.readouterr().err
+
+
+def test_the_valve_note_explains_only_where_omega_is_unidentified(tmp_path, capsys):
+    """From rest the valve's dynamics are identified (omega^2 within a fraction of a %): the note
+    says only what is graded; a record joined mid-run on a smooth command says why too."""
+    from plant_sim.noise import noise_model
+    from plant_sim.profiles import PaperIdentification
+
+    run = simulate(PaperIdentification(), 11.0, noise=noise_model("realistic"), seed=0)
+    for name, lo, why in (("rest", 0, False), ("midrun", 100, True)):
+        p = tmp_path / f"{name}.csv"
+        p.write_text(csv_text(run.t[lo:] - run.t[lo], run.samples[lo:]))
+        assert main(["evaluate", str(p)]) == 0
+        out = " ".join(capsys.readouterr().out.split())
+        assert "the valve is graded on its static gain K_sv" in out, name
+        assert ("needs the valve's dynamics excited" in out) == why, (name, out)
