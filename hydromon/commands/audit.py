@@ -85,10 +85,11 @@ def load(path: str, rig: str | None = None, config=None):
     if rig is not None:
         raise ValueError("--rig selects a rig of an MCAP recording; a CSV holds one rig")
     t, samples = read_csv(p)
-    if config is None:
+    found = _config_for(t, config, name, lambda i: f"{name} line {i + 2}")
+    if config is None:  # once the file is read: an error stays one line
         print(f"hydromon audit: {name}: the paper's rig constants (a CSV carries none; give yours with --config FILE)",
               file=sys.stderr)
-    return _config_for(t, config, name, lambda i: f"{name} line {i + 2}"), samples
+    return found, samples
 
 
 def run(args) -> int:
