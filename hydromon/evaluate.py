@@ -88,9 +88,10 @@ class Evaluation:
 
     @property
     def status(self) -> str:
-        """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``),
+        """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``) or x1
+        went beyond a chamber's end,
         ``ok`` once converged, else ``converging`` (the live monitor's statuses)."""
-        if self.assessment.implausible:
+        if self.assessment.implausible or self.x1_clamped:  # as the live monitor says
             return "bad-input"
         return "ok" if self.assessment.converged else "converging"
 

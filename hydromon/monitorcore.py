@@ -212,11 +212,13 @@ class MonitorCore:
         sample = ev.sample.tolist()
         statuses = []
         # a rig whose x1 went beyond a chamber's end has a wrong config or x1: its input is bad
-        bad_input = (ev.implausible | (self.fleet.x1_clamped_all()[ev.rig] > 0)).tolist()
+        bad_input = (ev.implausible | (ev.clamped > 0)).tolist()  # as of each event: batching-independent
         for i, level, conv, bad in zip(sample, ev.level.tolist(), ev.converged.tolist(), bad_input):
-            st = status.get(i) if status else None
-            if st is None:
-                st = "bad-input" if bad else "ok" if conv and level >= 0 else "converging"
+            st = status.get(i) if status else None  # bad-input (a rejected message) or stale
+            if bad:
+                st = "bad-input"  # before stale, as the precedence above says
+            elif st is None:
+                st = "ok" if conv and level >= 0 else "converging"
             statuses.append(st)
         payloads = health_payloads([seqs[i] for i in sample], t[ev.sample], ev.level, ev.confidence, ev.params,
                                    ev.std_errors, ev.grades, statuses, self._graded)

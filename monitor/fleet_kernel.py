@@ -13,7 +13,7 @@ from hydromon.contract import PARAM_NAMES
 from .estimates import estimates
 from .grading import grade_kernel
 from .identify import WORK_SIZE, identify_step
-from .layout import O_ROWS
+from .layout import O_CLAMPED, O_ROWS
 
 N_P = len(PARAM_NAMES)
 
@@ -35,8 +35,8 @@ def assess_rig(st, hyper, g_f, g_c, min_rows, p, s):
 
 @njit(cache=True, error_model="numpy")
 def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sign, edges, margins, z,
-              ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot,
-              p, s, conv):
+              ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped,
+              slot, p, s, conv):
     """Read out and grade rig r after batch sample i into event ``slot``.
 
     Kept out of the per-sample loop: it runs once per eval_every samples, and a call with this
@@ -54,6 +54,7 @@ def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sig
     ev_se[slot] = s[0]
     ev_grades[slot] = grades[0]
     ev_conv[slot] = conv[0]
+    ev_clamped[slot] = states[r, O_CLAMPED]  # samples whose x1 emptied a chamber, so far
 
 
 # nogil: Fleet's worker threads call it directly. Threads, not numba's prange: every view a
@@ -63,7 +64,7 @@ def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sig
 @njit(cache=True, nogil=True, error_model="numpy")
 def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
          index, sign, edges, margins, z, rig, samples,
-         ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, slot):
+         ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped, slot):
     """Samples order[lo:hi] of the batch, in that order; events from ``slot`` on. Returns the next slot."""
     work, p, s, conv = _scratch(ev_params.shape[1])
     for q in range(lo, hi):
@@ -75,7 +76,7 @@ def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g
         if (counts[r] + phase[r]) % eval_every == 0:
             _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sign, edges, margins, z,
                       ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
-                      slot, p, s, conv)
+                      ev_clamped, slot, p, s, conv)
             slot += 1
     return slot
 
@@ -83,7 +84,7 @@ def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g
 @njit(cache=True, error_model="numpy")
 def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
                   index, sign, edges, margins, z, rig, samples,
-                  ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv):
+                  ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped):
     """Identify a batch of samples in arrival order; evaluate and grade rigs at their evaluation points
     (every eval_every samples of a rig, counted on that rig's samples, so results never depend on
     how arrivals were batched).
@@ -93,7 +94,7 @@ def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_
     """
     return _run(np.arange(rig.shape[0]), 0, rig.shape[0], states, consts, counts, phase, bands, hyper, m_f, m_c,
                 g_f, g_c, min_rows, eval_every, index, sign, edges, margins, z, rig, samples,
-                ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, 0)
+                ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped, 0)
 
 
 @njit(cache=True, error_model="numpy")

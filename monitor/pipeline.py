@@ -88,6 +88,7 @@ class Events:
     std_errors: np.ndarray
     grades: np.ndarray
     converged: np.ndarray
+    clamped: np.ndarray  # the rig's samples so far whose x1 emptied a chamber (wrong config or x1)
     implausible: np.ndarray  # physically impossible estimates: not graded (monitor.plausibility)
 
     def __len__(self) -> int:
@@ -115,13 +116,13 @@ class Events:
     def of_kernel(arrays) -> Events:
         """Events from the kernel's event arrays (owned by the caller), with the rows whose
         estimates are physically impossible ungraded: level -1, confidence 0, grades -1."""
-        rig, sample, counts, level, conf, params, se, grades, conv = arrays
+        rig, sample, counts, level, conf, params, se, grades, conv, clamped = arrays
         bad = implausible_mask(params, se)
         if bad.any():
             level[bad] = -1
             conf[bad] = 0.0
             grades[bad] = -1
-        return Events(rig, sample, counts, level, conf, params, se, grades, conv, bad)
+        return Events(rig, sample, counts, level, conf, params, se, grades, conv, clamped, bad)
 
 
 class Fleet:
@@ -296,7 +297,7 @@ class Fleet:
         ng = len(self._ra.index)
         self._ev = (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
                     np.empty(cap, np.int64), np.empty(cap), np.empty((cap, N_P)), np.empty((cap, N_P)),
-                    np.empty((cap, ng), np.int64), np.empty(cap, np.bool_))
+                    np.empty((cap, ng), np.int64), np.empty(cap, np.bool_), np.empty(cap, np.int64))
         self._ev_cap = cap
 
     def glitches(self, rig: int) -> dict[str, int]:
@@ -325,7 +326,7 @@ class Fleet:
         level, grades, conf = grade_kernel(p, s, conv, ra.index, ra.sign, ra.edges, ra.margins,
                                            self.grade_z, band)
         one = Events.of_kernel([np.array([rig]), np.array([-1]), self.counts[rig:rig + 1].copy(), level, conf, p, s,
-                                grades, conv])
+                                grades, conv, np.array([self.x1_clamped(rig)])])
         return one.assessment(0, ra.names)
 
 

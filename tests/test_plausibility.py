@@ -96,3 +96,36 @@ def test_a_rig_whose_x1_went_beyond_a_chamber_end_reports_bad_input():
     for key, payload in core.process(msgs):
         status.setdefault(key.split("/")[2], set()).add(orjson.loads(payload)["status"])
     assert status["bad"] >= {"bad-input"} and "bad-input" not in status["good"], status
+
+
+def _clamp_stream(n=40):
+    """Rig "bad" (chamber 1 empties at x1 = -0.05 m) reads x1 = 0.01 m, then -0.06 m from seq 25."""
+    from hydromon.contract import RigConfig, config_key
+
+    msgs = [(config_key("bad"), orjson.dumps(RigConfig(V10=0.0004).model_dump(mode="json")))]
+    for k in range(n):
+        msgs.append((sample_key("bad"), orjson.dumps({"seq": k, "t": k * 0.01, "ug": 2.0, "x1": 0.01 if k < 25 else -0.06,
+                                                      "x3": 6e6, "x4": 4e6, "x5": 1e-5})))
+    return msgs
+
+
+def test_the_chamber_end_status_does_not_depend_on_batching():
+    # a review: the status was read from the clamp count after the whole batch, so a window that
+    # ended before the first clamped sample said bad-input in one batch and converging message by message
+    msgs = _clamp_stream()
+    whole = MonitorCore().process(msgs)
+    core = MonitorCore()
+    one_by_one = [h for m in msgs for h in core.process([m])]
+    assert whole == one_by_one
+    statuses = [orjson.loads(p)["status"] for _, p in whole]
+    assert statuses[0] != "bad-input" and statuses[-1] == "bad-input", statuses
+
+
+def test_bad_input_takes_precedence_over_stale():
+    msgs = _clamp_stream(60)
+    # a gap of 5 samples (seq 41-45) after x1 went beyond the chamber's end: the next health is stale
+    # by the gap and bad-input by the clamp; bad-input wins
+    msgs = msgs[:42] + msgs[47:]
+    health = [orjson.loads(p) for _, p in MonitorCore().process(msgs)]
+    after = [h["status"] for h in health if h["seq"] > 45]
+    assert after and set(after) == {"bad-input"}, [(h["seq"], h["status"]) for h in health]
