@@ -255,7 +255,11 @@ def _after_last_change(messages: list[tuple[int, RigConfig]], stored: list[RigCo
     if not messages and len(set(map(_config_key, stored))) > 1:
         raise ValueError(f"{name}: {len(stored)} different configs stored for the rig as metadata, but no "
                          "config messages: cannot tell which samples each applies to")
-    current = stored[0] if stored else RigConfig()  # the monitor's defaults when none is known
+    # a part the recorder opened carries the rigs' configs as messages ahead of its first one; a
+    # config stored as metadata only (an older recording) is the one in force from its start; else
+    # the monitor's defaults, and the first config message after a sample is a change (the live
+    # monitor had none before it either)
+    current = stored[0] if stored and not messages else RigConfig()
     first = changes = 0
     for i, config in messages:
         if i >= n:  # after the last sample: no sample was taken with it
@@ -319,12 +323,21 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         first = changes = 0
         if config is None:
             config, first, changes = _after_last_change(messages, stored, len(data), where)
-            data, seq = data[first:], seq[first:]
         # by seq, as the live monitor: it restarts the filters at a seq jump (which also covers
-        # skipped invalid samples) and never reads t, so t off the grid is counted, not refused
-        taken, duplicate, out_of_order = _seq_taken(seq, data[:, 0], where, first)
-        data, seq = data[taken], seq[taken]
-        restarts, missing = _seq_gaps(seq)
+        # skipped invalid samples) and never reads t, so t off the grid is counted, not refused.
+        # Its seq tracking runs on through a config change (a duplicate of the last seq before the
+        # change is dropped after it, a gap across it counted); only a rig restart resets it
+        top = np.maximum.accumulate(seq)
+        resets = np.flatnonzero((seq == 0) & (np.r_[-1, top[:-1]] > 0))
+        s0 = int(resets[resets <= first].max()) if np.any(resets <= first) else 0
+        taken, duplicate, out_of_order = _seq_taken(seq[s0:], data[s0:, 0], where, s0)
+        idx = s0 + np.flatnonzero(taken)
+        gaps_at, missing = _seq_gaps(seq[idx])
+        n_before = int(np.sum(idx < first))
+        # the estimates restart at the change anyway: a gap right there restarts nothing more
+        restarts = [i - n_before for i in gaps_at if i - n_before > 0]
+        idx = idx[n_before:]
+        data, seq = data[idx], seq[idx]
         jitter, jitter_max = _time_jitter(data[:, 0], seq, config.sample_rate)
         return Recording(rig_id, data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
                          tuple(restarts), missing, len(rejected), duplicate, out_of_order,

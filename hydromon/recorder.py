@@ -112,8 +112,6 @@ class Rotation:
                 part += 1
         self._file, self._first_ns = f, None
         self.writer = RecordingWriter(f, **self._kwargs)
-        for key, payload in self._configs.items():  # every part carries the rigs' configs
-            self.writer.store_config(key, payload)
         self.files.append(path)
         if self._on_file:
             self._on_file(path)
@@ -121,6 +119,12 @@ class Rotation:
     def write(self, key: str, payload: bytes, log_time_ns: int, publish_time_ns: int) -> None:
         if self.writer is None:  # the last part was closed when due: this message starts the next
             self._open()
+            # every part carries the rigs' configs, as messages ahead of its first one (and so as
+            # metadata too): a replay or evaluation of this part alone grades with the rigs' constants,
+            # and sees where they were in force from, as the live monitor did
+            for ckey, cpayload in self._configs.items():
+                if ckey != key:
+                    self.writer.write(ckey, cpayload, log_time_ns, log_time_ns)
         self.writer.write(key, payload, log_time_ns, publish_time_ns)
         if self._first_ns is None:
             self._first_ns = log_time_ns

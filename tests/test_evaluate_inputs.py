@@ -130,6 +130,17 @@ def test_a_config_change_evaluates_the_samples_after_it_with_the_new_constants(r
     assert "250 before its last config change skipped" in cap.err
 
 
+def test_a_first_config_that_comes_mid_record_is_a_change_as_live(run, tmp_path):
+    # a review: a recorder that joined a running rig has no config before its first sample; the
+    # first config (at sample 250) was taken as the one in force from the start, so evaluate
+    # graded all 600 samples with it while the live monitor restarted the rig there
+    msgs = _messages(run, configs=[(250, RigConfig(F_L=3000.0))])
+    rec = load_recording(_mcap(tmp_path / "late.mcap", msgs))
+    core, live = _live(msgs)
+    assert core.counters.config_changes == 1 and (rec.config_changes, rec.skipped) == (1, 250)
+    assert evaluate(rec).assessment.params == live
+
+
 def test_a_config_repeated_unchanged_splits_nothing(run, tmp_path):
     msgs = _messages(run, configs=[(0, RigConfig()), (250, RigConfig())])
     rec = load_recording(_mcap(tmp_path / "same.mcap", msgs))
@@ -191,3 +202,22 @@ def test_mcap_errors_name_the_file_once(run, tmp_path):
     with pytest.raises(ValueError) as exc:
         load_recording(p)
     assert str(exc.value).startswith(f"{p}: recording has no footer") and f"{p}: {p}" not in str(exc.value)
+
+
+@pytest.mark.parametrize("case", ["duplicate across the change", "gap across the change", "stale seq after it"])
+def test_seq_tracking_runs_on_through_a_config_change_as_live(run, tmp_path, case):
+    # a review: the seq checks ran on the part after the change only, so a duplicate of the last
+    # seq before it was taken, and a gap across it was not counted
+    seqs = list(range(len(run.t)))
+    if case == "duplicate across the change":
+        seqs = seqs[:250] + [249] + seqs[250:-1]
+    elif case == "gap across the change":
+        seqs = seqs[:240] + [s + 20 for s in seqs[240:]]
+    else:
+        seqs = seqs[:250] + [100] + seqs[250:-1]
+    msgs = _messages(run, seqs=seqs, configs=[(0, RigConfig()), (250, RigConfig(F_L=3000.0))])
+    rec = load_recording(_mcap(tmp_path / "c.mcap", msgs))
+    core, live = _live(msgs)
+    c = core.counters
+    assert (rec.duplicate, rec.out_of_order, rec.missing) == (c.duplicate, c.out_of_order, c.missing), case
+    assert evaluate(rec).assessment.params == live, case

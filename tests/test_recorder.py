@@ -74,6 +74,10 @@ def test_rotation_by_size_keeps_every_message_and_carries_configs(tmp_path):
         _, _, seq = read_samples(p)  # every part is a complete, valid recording
         seqs.extend(seq)
         assert read_rig_config(p, "r1") == RigConfig(p_s=10e6)
+        # ... as a config message ahead of the part's first sample, so a replay of one part alone
+        # grades with the rig's constants (a review: parts after the first were graded with the defaults)
+        first = next(iter(read_recording(p)))
+        assert first[0] == config_key("r1") and first[1] == cfg
     assert seqs == list(range(n))
 
 
