@@ -263,3 +263,13 @@ def test_monitor_core_names_eval_every():
 
     with pytest.raises(ValueError, match="eval_every -1 must be >= 1"):
         MonitorCore("hydro", eval_every=-1)
+
+
+def test_sim_refuses_two_outputs_that_are_one_file_through_a_link(tmp_path, capsys):
+    # a review: the check compared absolute paths, so a symlink to the other output passed it
+    (tmp_path / "a").write_text("keep")
+    os.symlink(tmp_path / "a", tmp_path / "b")
+    assert main(["sim", "--duration", "1", "--rigs", "1", "--to-csv", str(tmp_path / "a"),
+                 "--to-mcap", str(tmp_path / "b")]) == 2
+    one_error_line(capsys, "sim", "name the same file")
+    assert (tmp_path / "a").read_text() == "keep"

@@ -91,7 +91,7 @@ def check_args(args, spec) -> None:
     h = spec.config.h
     if round(args.duration / h) < 1:
         raise ValueError(f"--duration {args.duration!r} s is shorter than one sample ({h:g} s)")
-    if args.to_csv and args.to_mcap and os.path.abspath(args.to_csv) == os.path.abspath(args.to_mcap):
+    if args.to_csv and args.to_mcap and os.path.realpath(args.to_csv) == os.path.realpath(args.to_mcap):
         raise ValueError(f"--to-csv and --to-mcap name the same file {args.to_csv!r}")
     if args.to_csv:
         simnode.select_rig(spec, args.rig)

@@ -234,7 +234,7 @@ POSITIVE_AUDIT = ("inv_beta_e", "CdW_sqrt_rho", "K_sv")
 
 def impossible_params(params: dict) -> list[str]:
     """The POSITIVE_AUDIT parameters of a whole-record identification [SI] that are not positive."""
-    return [k for k in POSITIVE_AUDIT if not params.get(k, 1.0) > 0]
+    return [k for k in POSITIVE_AUDIT if params.get(k, 1.0) <= 0]  # NaN: unidentified, not impossible
 
 
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
