@@ -87,7 +87,10 @@ def render() -> str:
     out += [
         "",
         f"Grades: {', '.join(f'`{g}`' for g in GRADES)} (levels 0-4), and `unknown` (level null).",
-        f"Statuses: {', '.join(f'`{s}`' for s in STATUSES)}.",
+        f"Statuses: {', '.join(f'`{s}`' for s in STATUSES)}. `bad-input` (before `stale`): a message on the rig's",
+        "sample key was rejected since its previous health, or its x1 went beyond a chamber's end (the rig constants",
+        "or x1's zero, sign or unit are wrong; grade kept), or an estimate is physically impossible (a negative",
+        "compressibility, orifice coefficient or valve gain: input in wrong units or sign; grade `unknown`).",
         f"Parameter names in `params`: {', '.join(f'`{p}`' for p in PARAM_NAMES)}.",
         "`K_sv` (the servo valve's static gain [m/V]) extends DESIGN.md section 3's list: the default ranges",
         "grade the valve on it instead of `K_sv_omega_sv2`, because it stays identifiable when the command does",
