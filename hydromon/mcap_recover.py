@@ -123,13 +123,28 @@ def _lost_chunk(pos: int, chunk: Chunk | None, why: str) -> dict:
     return {"byte": pos, "log_time_s": span, "messages": None, "why": why}
 
 
-def _salvage(f, report: RecoverReport) -> Iterator:
-    """Records of a possibly cut or damaged MCAP stream, by their framing (module docstring)."""
+def _salvage(f, report: RecoverReport, chunk_starts=()) -> Iterator:
+    """Records of a possibly cut or damaged MCAP stream, by their framing (module docstring).
+
+    ``chunk_starts``: the chunks' byte offsets from an intact summary; where a record's framing
+    breaks (a flipped bit in a length or opcode), the walk resumes at the next of them and the
+    bytes skipped are reported lost, instead of stopping there."""
     size = f.seek(0, io.SEEK_END)
     report.bytes_total = size
     _head(f)
     pos = report.bytes_ok = len(MAGIC)
     lost = None  # the chunk just skipped: the message indexes after it count its messages
+
+    def resume(at: int, why: str) -> int | None:
+        nxt = next((s for s in chunk_starts if s > at), None)
+        if nxt is None:
+            return None
+        report.lost.append({"byte": at, "log_time_s": None, "messages": None,
+                            "why": f"framing lost ({why}); resumed at the next chunk, byte {nxt}"})
+        report.chunks_lost += 1
+        f.seek(nxt)
+        return nxt
+
     while True:
         head = f.read(_RECORD_HEAD.size)
         if not head:
@@ -139,11 +154,15 @@ def _salvage(f, report: RecoverReport) -> Iterator:
             report.stopped_by = "end of file inside a record"
             return
         op, length = _RECORD_HEAD.unpack(head)
-        if op not in _KNOWN_OPCODES:
-            report.stopped_by = f"record at byte {pos} has unknown opcode 0x{op:02x} (framing lost)"
-            return
-        if length > size - pos - _RECORD_HEAD.size:
-            report.stopped_by = "end of file inside a record"
+        if op not in _KNOWN_OPCODES or length > size - pos - _RECORD_HEAD.size:
+            why = (f"unknown opcode 0x{op:02x}" if op not in _KNOWN_OPCODES
+                   else f"a {length}-byte record past the end of the file")
+            nxt = resume(pos, why)
+            if nxt is not None:
+                lost, pos = None, nxt
+                continue
+            report.stopped_by = (f"record at byte {pos} has unknown opcode 0x{op:02x} (framing lost)"
+                                 if op not in _KNOWN_OPCODES else "end of file inside a record")
             return
         body = f.read(length)
         end = pos + _RECORD_HEAD.size + length
@@ -181,21 +200,25 @@ def _salvage(f, report: RecoverReport) -> Iterator:
         pos = report.bytes_ok = end
 
 
-def _summary_channels(f) -> tuple[dict, dict]:
-    """``(schemas, channels)`` by id from the summary of a file whose footer and summary CRC are
-    intact (so messages after a lost chunk that declared their channel keep it), else empty."""
+def _summary_channels(f) -> tuple[dict, dict, list]:
+    """``(schemas, channels, chunk starts)`` from the summary of a file whose footer and summary
+    CRC are intact (so messages after a lost chunk that declared their channel keep it, and the
+    walk can resume at the next chunk where a record's framing broke), else empty."""
     try:
         size = f.seek(0, io.SEEK_END)
         f.seek(max(0, size - len(MAGIC)))
         if size < 2 * len(MAGIC) or f.read(len(MAGIC)) != MAGIC:
-            return {}, {}
+            return {}, {}, []
         _check_summary_crc(f, "")
         summary = make_reader(f).get_summary()
     except (*_DECODE_ERRORS, RecordingError):
-        return {}, {}
+        return {}, {}, []
     finally:
         f.seek(0)
-    return (dict(summary.schemas), dict(summary.channels)) if summary is not None else ({}, {})
+    if summary is None:
+        return {}, {}, []
+    starts = sorted(c.chunk_start_offset for c in summary.chunk_indexes)
+    return dict(summary.schemas), dict(summary.channels), starts
 
 
 def recover(src, dst) -> RecoverReport:
@@ -219,7 +242,7 @@ def recover(src, dst) -> RecoverReport:
         if size < len(MAGIC):
             name = os.fspath(src) if isinstance(src, (str, os.PathLike)) else getattr(src, "name", "<stream>")
             raise EmptyRecording(empty_message(name, size))
-        known_schemas, known_channels = _summary_channels(fin)
+        known_schemas, known_channels, chunk_starts = _summary_channels(fin)
         fout = stack.enter_context(open(dst, "wb")) if isinstance(dst, (str, os.PathLike)) else dst
         writer = Writer(fout, compression=CompressionType.ZSTD)
         writer.start(profile="", library="hydromon recover")
@@ -237,7 +260,7 @@ def recover(src, dst) -> RecoverReport:
                                                        schemas.get(rec.schema_id, 0), dict(rec.metadata))
             report.channels += 1
 
-        for rec in _salvage(fin, report):
+        for rec in _salvage(fin, report, chunk_starts):
             if isinstance(rec, Schema) and rec.id not in schemas:
                 add_schema(rec)
             elif isinstance(rec, Channel) and rec.id not in channels:

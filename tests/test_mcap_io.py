@@ -377,6 +377,25 @@ def test_recover_skips_a_damaged_chunk_and_keeps_every_other(which, footer):
     assert report.messages == len(msgs) - len(in_chunk)
 
 
+@pytest.mark.parametrize("field", ["length", "opcode"])
+def test_recover_resumes_at_the_next_chunk_where_a_records_framing_breaks(field):
+    # a review: a flipped bit in a chunk record's length (or opcode) stopped the walk there, and
+    # every intact chunk after it was lost although the file's summary knows where they start
+    msgs = _config_and_samples()
+    data, _ = write_messages(msgs, flush_interval_ns=NS // 2)
+    spans = chunk_spans(data)
+    bad = bytearray(data)
+    at = spans[4][0] + (1 + 6 if field == "length" else 0)  # the length's high byte, or the opcode
+    bad[at] ^= 0x40
+    out = io.BytesIO()
+    report = recover(io.BytesIO(bytes(bad)), out)
+    got = list(read_recording(io.BytesIO(out.getvalue())))
+    lo, hi = msgs[0][2] + 4 * NS // 2, msgs[0][2] + 5 * NS // 2
+    assert got == [m for m in msgs if not lo <= m[2] < hi]  # every other chunk's messages (before: 4 of 10 chunks)
+    assert report.chunks == 9 and report.chunks_lost == 1 and not report.data_complete
+    assert report.lost[0]["byte"] == spans[4][0] and "resumed at the next chunk" in report.lost[0]["why"]
+
+
 def test_recover_command_reports_the_lost_chunk(tmp_path, capsys):
     data, _ = write_messages(_config_and_samples(), flush_interval_ns=NS // 2)
     src = tmp_path / "flip.mcap"
