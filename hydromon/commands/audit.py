@@ -26,8 +26,8 @@ def add_arguments(parser) -> None:
 
 def read_csv(stream, name: str = "<csv>") -> tuple[np.ndarray, np.ndarray]:
     """``(t [s], samples (N, 5))`` from a CSV path or text stream with header t,ug,x1,x3,x4,x5:
-    ``hydromon.evaluate.read_csv``, whose errors name the file and line."""
-    from hydromon.evaluate import read_csv as read_rows
+    ``hydromon.recording.read_csv``, whose errors name the file and line."""
+    from hydromon.recording import read_csv as read_rows
 
     data = read_rows(stream, name)
     return data[:, 0], data[:, 1:]

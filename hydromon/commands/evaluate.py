@@ -30,7 +30,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from hydromon.evaluate import evaluate, load_recording, render, to_json
+    from hydromon.evaluate import evaluate, render, to_json
+    from hydromon.recording import load_recording
 
     from pathlib import Path
 
