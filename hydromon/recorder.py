@@ -25,9 +25,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import zenoh
+from pydantic import ValidationError
 
 from hydromon.bus import loads
-from hydromon.contract import DEFAULT_NAMESPACE, _check_ns
+from hydromon.contract import DEFAULT_NAMESPACE, RigConfig, _check_ns
 from hydromon.mcap_io import RecordingWriter, rig_topic
 
 __all__ = ["record", "RecordResult", "publish_time_ns", "Rotation"]
@@ -53,6 +54,15 @@ def publish_time_ns(obj, receive_time_ns: int) -> int:
         if 0 <= ns < 2**64:
             return ns
     return receive_time_ns
+
+
+def _valid_config(payload: bytes) -> bool:
+    """A config payload the monitor would take (a valid RigConfig; its sample rate is not known here)."""
+    try:
+        RigConfig.model_validate_json(payload)
+    except ValidationError:
+        return False
+    return True
 
 
 class Rotation:
@@ -129,8 +139,8 @@ class Rotation:
         if self._first_ns is None:
             self._first_ns = log_time_ns
         parsed = rig_topic(key)
-        if parsed is not None and parsed[1] == "config":
-            self._configs[key] = payload
+        if parsed is not None and parsed[1] == "config" and _valid_config(payload):
+            self._configs[key] = payload  # carried into the next parts (an invalid one the monitor rejects: not)
 
     def tick(self, now_ns: int) -> None:
         """Flush the open chunk if due; close the file if it is big or old enough (the next

@@ -187,6 +187,19 @@ def _seq_taken(seq: np.ndarray, t: np.ndarray, name: str, first: int = 0) -> tup
     return seq > before, int(np.sum(seq == before)), int(np.sum(seq < before))
 
 
+def _restarts(seq: np.ndarray) -> list[int]:
+    """Indices where the live monitor sees the rig restart: seq 0 after a higher seq taken (a
+    second seq 0 right after a restart is a duplicate, not another restart)."""
+    out, last = [], -1
+    for i, s in enumerate(seq.tolist()):
+        if s == 0 and last > 0:
+            out.append(i)
+            last = 0
+        elif s > last:
+            last = s
+    return out
+
+
 def _seq_gaps(seq: np.ndarray) -> tuple[list[int], int]:
     """Samples after a gap in the rig's (increasing) sequence numbers, and how many are missing."""
     d = np.diff(seq)
@@ -289,9 +302,7 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         # skipped invalid samples) and never reads t, so t off the grid is counted, not refused.
         # Its seq tracking runs on through a config change (a duplicate of the last seq before the
         # change is dropped after it, a gap across it counted); only a rig restart resets it
-        top = np.maximum.accumulate(seq)
-        resets = np.flatnonzero((seq == 0) & (np.r_[-1, top[:-1]] > 0))
-        s0 = int(resets[resets <= first].max()) if np.any(resets <= first) else 0
+        s0 = max((i for i in _restarts(seq) if i <= first), default=0)
         taken, duplicate, out_of_order = _seq_taken(seq[s0:], data[s0:, 0], where, s0)
         idx = s0 + np.flatnonzero(taken)
         gaps_at, missing = _seq_gaps(seq[idx])

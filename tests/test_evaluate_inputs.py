@@ -221,3 +221,15 @@ def test_seq_tracking_runs_on_through_a_config_change_as_live(run, tmp_path, cas
     c = core.counters
     assert (rec.duplicate, rec.out_of_order, rec.missing) == (c.duplicate, c.out_of_order, c.missing), case
     assert evaluate(rec).assessment.params == live, case
+
+
+def test_a_duplicate_seq_0_after_a_restart_is_a_duplicate_as_live(run, tmp_path):
+    # a review: restarts were found against the highest seq so far, so the second seq 0 of
+    # 300..., 0, 0, 1, ... counted as another restart; live drops it as a duplicate
+    n = len(run.t)
+    seqs = list(range(300)) + [0, 0] + list(range(1, n - 302 + 1))
+    msgs = _messages(run, seqs=seqs, configs=[(0, RigConfig()), (301, RigConfig(F_L=3000.0))])
+    rec = load_recording(_mcap(tmp_path / "r.mcap", msgs))
+    core, live = _live(msgs)
+    assert rec.duplicate == core.counters.duplicate == 1
+    assert evaluate(rec).assessment.params == live

@@ -298,3 +298,20 @@ def test_record_command_stops_after_its_duration_and_prints_the_file(tmp_path, c
     assert captured.out.split() == [str(out)]
     assert f"writing {out}" in captured.err
     assert list(read_recording(out)) == []  # a complete, empty recording
+
+
+def test_a_part_carries_the_last_valid_config_not_a_rejected_one(tmp_path):
+    # a review: an invalid config payload (which the monitor rejects) was carried into every later part
+    r, _ = _rotation(tmp_path, rotate_bytes=3000)
+    good = RigConfig(F_L=3000.0).model_dump_json().encode()
+    r.write(config_key("r1"), good, 1, 1)
+    for i in range(400):
+        now = 2 + i * 10_000_000
+        if i == 150:
+            r.write(config_key("r1"), b'{"F_L": "oops"}', now, now)
+        r.write(sample_key("r1"), sample_bytes(i, i * 0.01), now, now)
+        r.tick(now)
+    r.close()
+    assert len(r.files) > 3
+    first = next(iter(read_recording(r.files[-1])))
+    assert first[0] == config_key("r1") and first[1] == good
