@@ -87,7 +87,8 @@ def _lost_text(lost: list) -> str:
         span = f", log time {c['log_time_s'][0]:.3f}-{c['log_time_s'][1]:.3f} s" if c["log_time_s"] else ""
         n = "?" if c["messages"] is None else c["messages"]
         parts.append(f"byte {c['byte']}{span}, {n} messages: {c['why']}")
-    return f"; LOST {len(lost)} damaged chunk(s) with {count} ({'; '.join(parts)})"
+    what = "chunk(s)" if all(c.get("chunk", True) for c in lost) else "chunk(s) or records between them"
+    return f"; LOST {len(lost)} damaged {what} with {count} ({'; '.join(parts)})"
 
 
 def _head(f) -> bytes:
@@ -123,10 +124,10 @@ def _lost_chunk(pos: int, chunk: Chunk | None, why: str) -> dict:
     return {"byte": pos, "log_time_s": span, "messages": None, "why": why}
 
 
-def _salvage(f, report: RecoverReport, chunk_starts=()) -> Iterator:
+def _salvage(f, report: RecoverReport, chunks=()) -> Iterator:
     """Records of a possibly cut or damaged MCAP stream, by their framing (module docstring).
 
-    ``chunk_starts``: the chunks' byte offsets from an intact summary; where a record's framing
+    ``chunks``: the chunks' (byte offset, record length) from an intact summary; where a record's framing
     breaks (a flipped bit in a length or opcode), the walk resumes at the next of them and the
     bytes skipped are reported lost, instead of stopping there."""
     size = f.seek(0, io.SEEK_END)
@@ -134,16 +135,40 @@ def _salvage(f, report: RecoverReport, chunk_starts=()) -> Iterator:
     _head(f)
     pos = report.bytes_ok = len(MAGIC)
     lost = None  # the chunk just skipped: the message indexes after it count its messages
+    chunk_starts = [s for s, _ in chunks]
 
     def resume(at: int, why: str) -> int | None:
         nxt = next((s for s in chunk_starts if s > at), None)
         if nxt is None:
             return None
-        report.lost.append({"byte": at, "log_time_s": None, "messages": None,
-                            "why": f"framing lost ({why}); resumed at the next chunk, byte {nxt}"})
-        report.chunks_lost += 1
+        own = next((s for s, n in chunks if s <= at < s + n), None)  # the chunk the break is in
+        note = f"framing lost at byte {at} ({why}); resumed at the next chunk, byte {nxt}"
+        if own is None:  # between chunks: index records skipped, no message
+            report.lost.append({"byte": at, "log_time_s": None, "messages": 0, "why": note, "chunk": False})
+        elif not (report.lost and report.lost[-1]["byte"] == own):  # (a chunk already lost: one loss)
+            report.lost.append({"byte": own, "log_time_s": None, "messages": None, "why": note})
+            report.chunks_lost += 1
         f.seek(nxt)
         return nxt
+
+    def broken(op: int, length: int) -> str | None:
+        """Why this record's framing is wrong (None if it looks right): judged by the summary's
+        chunk offsets when known, so a flipped bit that still fits in the file is caught too."""
+        if op not in _KNOWN_OPCODES:
+            return f"unknown opcode 0x{op:02x}"
+        if length > size - pos - _RECORD_HEAD.size:
+            return f"a {length}-byte record past the end of the file"
+        if chunk_starts:
+            end = pos + _RECORD_HEAD.size + length
+            if any(pos < s < end for s in chunk_starts):
+                return f"a {length}-byte record across the chunk at byte {next(s for s in chunk_starts if pos < s)}"
+            if op == Opcode.CHUNK and pos not in chunk_starts:
+                return "a chunk record where the summary has none"
+            if op in (Opcode.DATA_END, Opcode.FOOTER) and pos < chunk_starts[-1]:
+                return f"a {Opcode(op).name.lower()} record before the last chunk"
+            if op == Opcode.MESSAGE:  # hydromon writes every message inside a chunk
+                return "a message record outside any chunk"
+        return None
 
     while True:
         head = f.read(_RECORD_HEAD.size)
@@ -154,9 +179,8 @@ def _salvage(f, report: RecoverReport, chunk_starts=()) -> Iterator:
             report.stopped_by = "end of file inside a record"
             return
         op, length = _RECORD_HEAD.unpack(head)
-        if op not in _KNOWN_OPCODES or length > size - pos - _RECORD_HEAD.size:
-            why = (f"unknown opcode 0x{op:02x}" if op not in _KNOWN_OPCODES
-                   else f"a {length}-byte record past the end of the file")
+        why = broken(op, length)
+        if why is not None:
             nxt = resume(pos, why)
             if nxt is not None:
                 lost, pos = None, nxt
@@ -217,8 +241,8 @@ def _summary_channels(f) -> tuple[dict, dict, list]:
         f.seek(0)
     if summary is None:
         return {}, {}, []
-    starts = sorted(c.chunk_start_offset for c in summary.chunk_indexes)
-    return dict(summary.schemas), dict(summary.channels), starts
+    chunks = sorted((c.chunk_start_offset, c.chunk_length) for c in summary.chunk_indexes)
+    return dict(summary.schemas), dict(summary.channels), chunks
 
 
 def recover(src, dst) -> RecoverReport:
@@ -242,7 +266,7 @@ def recover(src, dst) -> RecoverReport:
         if size < len(MAGIC):
             name = os.fspath(src) if isinstance(src, (str, os.PathLike)) else getattr(src, "name", "<stream>")
             raise EmptyRecording(empty_message(name, size))
-        known_schemas, known_channels, chunk_starts = _summary_channels(fin)
+        known_schemas, known_channels, known_chunks = _summary_channels(fin)
         fout = stack.enter_context(open(dst, "wb")) if isinstance(dst, (str, os.PathLike)) else dst
         writer = Writer(fout, compression=CompressionType.ZSTD)
         writer.start(profile="", library="hydromon recover")
@@ -260,7 +284,7 @@ def recover(src, dst) -> RecoverReport:
                                                        schemas.get(rec.schema_id, 0), dict(rec.metadata))
             report.channels += 1
 
-        for rec in _salvage(fin, report, chunk_starts):
+        for rec in _salvage(fin, report, known_chunks):
             if isinstance(rec, Schema) and rec.id not in schemas:
                 add_schema(rec)
             elif isinstance(rec, Channel) and rec.id not in channels:

@@ -396,6 +396,43 @@ def test_recover_resumes_at_the_next_chunk_where_a_records_framing_breaks(field)
     assert report.lost[0]["byte"] == spans[4][0] and "resumed at the next chunk" in report.lost[0]["why"]
 
 
+@pytest.mark.parametrize("case", ["chunk length grown, still in the file", "chunk length shrunk",
+                                  "index opcode -> footer", "index opcode -> message", "index length grown"])
+def test_recover_judges_framing_by_the_summarys_chunks(case):
+    # a review's fuzzing: damage that still fits in the file swallowed intact chunks, ended the walk
+    # as "whole", wrote an index record as a sample, or counted one lost chunk twice
+    msgs = _config_and_samples()
+    data, _ = write_messages(msgs, flush_interval_ns=NS // 2)
+    spans = chunk_spans(data)
+    bad = bytearray(data)
+    start, end, _ = spans[3]
+    if case == "chunk length grown, still in the file":
+        bad[start + 2] ^= 0x20  # + 8 kB: across the next chunks
+    elif case == "chunk length shrunk":
+        bad[start + 2] = 0
+        bad[start + 1] = 0x10
+    else:  # the first record after chunk 3 is its message index
+        assert bad[end] == 0x07
+        if case == "index opcode -> footer":
+            bad[end] = 0x02
+        elif case == "index opcode -> message":
+            bad[end] = 0x05
+        else:
+            bad[end + 2] ^= 0x20
+    out = io.BytesIO()
+    report = recover(io.BytesIO(bytes(bad)), out)
+    got = list(read_recording(io.BytesIO(out.getvalue())))
+    lo, hi = msgs[0][2] + 3 * NS // 2, msgs[0][2] + 4 * NS // 2
+    chunk3 = [m for m in msgs if lo <= m[2] < hi]
+    if case.startswith("chunk"):
+        assert got == [m for m in msgs if m not in chunk3] and report.chunks_lost == 1, report.summary()
+        assert report.lost[0]["byte"] == start
+    else:  # only index records lost: every message kept, and the report says something was skipped
+        assert got == msgs and report.chunks_lost == 0, report.summary()
+        assert report.lost and report.lost[0]["messages"] == 0
+    assert not report.data_complete and report.stopped_by is None
+
+
 def test_recover_command_reports_the_lost_chunk(tmp_path, capsys):
     data, _ = write_messages(_config_and_samples(), flush_interval_ns=NS // 2)
     src = tmp_path / "flip.mcap"
