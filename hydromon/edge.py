@@ -76,10 +76,10 @@ def _classify(exc: ValidationError, obj: dict) -> tuple[str, str]:
         value = obj.get(e["loc"][0]) if e.get("loc") and isinstance(obj, dict) else None
         if typ == "missing":
             kinds.append(("missing-field", loc))
+        elif typ == "extra_forbidden":  # whatever its value ("INF" in an unknown field is not a non-finite reading)
+            kinds.append(("unknown-field", loc))
         elif typ == "finite_number" or "finite" in e.get("msg", "") or _nonfinite_string(value):
             kinds.append(("non-finite", loc))
-        elif typ == "extra_forbidden":
-            kinds.append(("unknown-field", loc))
         elif typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
             kinds.append(("bad-value", loc))
         else:

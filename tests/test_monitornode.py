@@ -688,3 +688,11 @@ def test_a_rig_whose_x1_empties_a_chamber_is_warned_of_once_while_running():
     assert warnings == [("bad", X1_CLAMPED_WARNING)] * 3
     core.process(samples(0, 10))                      # the rig restarted (seq 0): afresh
     assert warnings == [("bad", X1_CLAMPED_WARNING)] * 4
+
+
+def test_an_unknown_field_whose_value_reads_as_infinity_is_an_unknown_field():
+    # found by the property above in CI: {"extra": "INF"} was rejected as non-finite
+    ok = {"seq": 0, "t": 0.0, "ug": 0.0, "x1": 0.0, "x3": 0.0, "x4": 0.0, "x5": 0.0}
+    with pytest.raises(Rejected) as info:
+        parse_sample({**ok, "extra": "INF"})
+    assert info.value.reason == "unknown-field"
