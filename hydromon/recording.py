@@ -235,10 +235,15 @@ def _after_last_change(messages: list[tuple[int, RigConfig]], stored: list[RigCo
     # the monitor's defaults, and the first config message after a sample is a change (the live
     # monitor had none before it either)
     current = stored[0] if stored and not messages else RigConfig()
+    # a monitor runs at one sample rate and rejects configs of another (MonitorCore._on_config):
+    # the record's rate is its first config's
+    rate = (messages[0][1] if messages else current).sample_rate
     first = changes = 0
     for i, config in messages:
         if i >= n:  # after the last sample: no sample was taken with it
             break
+        if config.sample_rate != rate:
+            continue
         if i > 0 and config != current:
             first, changes = i, changes + 1
         current = config

@@ -233,3 +233,11 @@ def test_a_duplicate_seq_0_after_a_restart_is_a_duplicate_as_live(run, tmp_path)
     core, live = _live(msgs)
     assert rec.duplicate == core.counters.duplicate == 1
     assert evaluate(rec).assessment.params == live
+
+
+def test_a_config_at_another_sample_rate_is_ignored_as_live_rejects_it(run, tmp_path):
+    msgs = _messages(run, configs=[(0, RigConfig()), (300, RigConfig(sample_rate=200.0))])
+    rec = load_recording(_mcap(tmp_path / "rate.mcap", msgs))
+    core, live = _live(msgs)
+    assert core.counters.config_changes == 0 and rec.config_changes == 0
+    assert evaluate(rec).assessment.params == live
