@@ -273,3 +273,25 @@ def test_sim_refuses_two_outputs_that_are_one_file_through_a_link(tmp_path, caps
                  "--to-mcap", str(tmp_path / "b")]) == 2
     one_error_line(capsys, "sim", "name the same file")
     assert (tmp_path / "a").read_text() == "keep"
+
+
+def test_sigterm_while_writing_leaves_neither_a_part_file_nor_a_half_output(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "long.csv"
+    proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "sim", "--to-csv", str(out), "--duration", "3000",
+                             "--rigs", "1"], stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not any(p.name.endswith(".part") for p in tmp_path.iterdir()):
+            assert proc.poll() is None and time.monotonic() < deadline, "no temporary file appeared"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + signal.SIGTERM
+    assert list(tmp_path.iterdir()) == []  # before: a .long.csv.*.part file stayed behind

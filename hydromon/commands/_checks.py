@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import tempfile
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -71,6 +73,33 @@ def writable_dir(option: str, path: str | os.PathLike) -> None:
         raise ValueError(f"{option} {str(p)!r}: cannot create it, {str(ancestor)!r} is not writable")
 
 
+def _read_umask() -> int:
+    mask = os.umask(0)  # the only way to read it; done once, at import, before any thread
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _read_umask()
+
+
+def _terminated(signum, frame):
+    raise SystemExit(128 + signum)  # unwinds like Ctrl-C: the temporary file is removed
+
+
+@contextmanager
+def _sigterm_unwinds():
+    """SIGTERM raises SystemExit in the main thread for the duration (else it kills the process
+    where it stands and leaves the temporary file behind)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 @contextmanager
 def replace_on_success(path: str | os.PathLike, mode: str = "w", **open_kw):
     """Open a temporary file beside ``path``; on a clean exit it replaces ``path`` atomically,
@@ -84,14 +113,14 @@ def replace_on_success(path: str | os.PathLike, mode: str = "w", **open_kw):
     p = Path(os.path.realpath(path))
     fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.name}.", suffix=".part")
     try:
-        with os.fdopen(fd, mode, **open_kw) as f:
+        with _sigterm_unwinds(), os.fdopen(fd, mode, **open_kw) as f:
             yield f
+            f.flush()
+            os.fsync(f.fileno())  # on disk before it replaces the old file
         if p.exists():
             os.chmod(tmp, p.stat().st_mode & 0o7777)  # keep the replaced file's permissions
         else:
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a new file gets open()'s mode
+            os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; a new file gets open()'s mode
         os.replace(tmp, p)
     except BaseException:
         try:
