@@ -319,3 +319,16 @@ def test_a_bus_replay_that_sent_nothing_exits_2(recording, capsys, monkeypatch):
                     "--duration", "0"], capsys)
     assert rc == 2 and session.sent == []
     assert f"hydromon replay: error: {recording}: no message in the window (--start, --duration, --keys): nothing sent" in err
+
+
+def test_a_bus_replay_of_another_namespace_says_where_its_messages_go(recording, tmp_path, capsys, monkeypatch):
+    import contextlib
+
+    site = _rewrite(recording, tmp_path / "site.mcap", key=lambda k: k.replace("hydro/", "site1/lineA/", 1), n=600)
+    session = _FakeSession(_FakeTime())
+    monkeypatch.setattr("hydromon.commands.replay.session_from_args", lambda args: contextlib.nullcontext(session))
+    rc, err = _cli(["replay", str(site), "--quiet", "--rate", "0", "--wait", "0"], capsys)
+    assert rc == 0 and session.sent and all(k.startswith("site1/lineA/") for k, *_ in session.sent)
+    assert "recorded under namespace site1/lineA" in err and "--namespace site1/lineA" in err
+    rc, err = _cli(["replay", str(recording), "--quiet", "--rate", "0", "--wait", "0"], capsys)
+    assert rc == 0 and "recorded under namespace" not in err

@@ -102,9 +102,16 @@ def run(args) -> int:
     check_args(args)
     if args.direct:
         return _direct(args)
-    from hydromon.replay import NothingToReplay, check_window, recording_span, replay_bus
+    from hydromon.replay import (
+        NothingToReplay, check_window, recording_span, recording_topics, replay_bus, sample_namespaces,
+    )
 
     check_window(args.file, keys=args.keys, start=args.start)  # a bad file fails here, before the session opens
+    recorded = sample_namespaces(recording_topics(args.file))
+    if recorded and args.namespace not in recorded:  # the keys go out as recorded: say where
+        print(f"hydromon replay: note: {args.file} was recorded under namespace {', '.join(recorded)}, and its "
+              f"messages go out under it, not {args.namespace}: a monitor must run with --namespace "
+              f"{recorded[0]} to grade them", file=sys.stderr)
     first, last, _ = recording_span(args.file)
     total = max(0.0, (last - first) / 1e9 - (args.start or 0.0))
     if args.duration is not None:
