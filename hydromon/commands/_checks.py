@@ -12,7 +12,7 @@ import os
 import signal
 import tempfile
 import threading
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 
@@ -82,14 +82,22 @@ def _read_umask() -> int:
 _UMASK = _read_umask()
 
 
+_ACTIVE: list[str] = []  # temporary files being written
+
+
 def _terminated(signum, frame):
-    raise SystemExit(128 + signum)  # unwinds like Ctrl-C: the temporary file is removed
+    # remove them and exit at once: an exception raised here could land in code that swallows
+    # it (a garbage-collection callback: measured, the run then finished with exit 0)
+    for tmp in list(_ACTIVE):
+        with suppress(OSError):
+            os.unlink(tmp)
+    os._exit(128 + signum)
 
 
 @contextmanager
-def _sigterm_unwinds():
-    """SIGTERM raises SystemExit in the main thread for the duration (else it kills the process
-    where it stands and leaves the temporary file behind)."""
+def _sigterm_removes():
+    """SIGTERM removes the temporary files and exits, in the main thread, for the duration (by
+    default it kills the process where it stands and leaves them behind)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -103,28 +111,30 @@ def _sigterm_unwinds():
 @contextmanager
 def replace_on_success(path: str | os.PathLike, mode: str = "w", **open_kw):
     """Open a temporary file beside ``path``; on a clean exit it replaces ``path`` atomically,
-    on an exception it is removed, so ``path`` is never left truncated or half written and
-    an existing file is only replaced by a complete one. A symbolic link's target is
-    replaced; a device or pipe (``/dev/stdout``) is written in place."""
+    on an exception (or SIGTERM) it is removed, so ``path`` is never left truncated or half
+    written and an existing file is only replaced by a complete one. A symbolic link's target
+    is replaced; a device or pipe (``/dev/stdout``) is written in place."""
     if Path(path).exists() and not Path(path).is_file():
         with open(path, mode, **open_kw) as f:
             yield f
         return
     p = Path(os.path.realpath(path))
-    fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.name}.", suffix=".part")
-    try:
-        with _sigterm_unwinds(), os.fdopen(fd, mode, **open_kw) as f:
-            yield f
-            f.flush()
-            os.fsync(f.fileno())  # on disk before it replaces the old file
-        if p.exists():
-            os.chmod(tmp, p.stat().st_mode & 0o7777)  # keep the replaced file's permissions
-        else:
-            os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; a new file gets open()'s mode
-        os.replace(tmp, p)
-    except BaseException:
+    with _sigterm_removes():
+        fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", prefix=f".{p.name}.", suffix=".part")
+        _ACTIVE.append(tmp)
         try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+            with os.fdopen(fd, mode, **open_kw) as f:
+                yield f
+                f.flush()
+                os.fsync(f.fileno())  # on disk before it replaces the old file
+            if p.exists():
+                os.chmod(tmp, p.stat().st_mode & 0o7777)  # keep the replaced file's permissions
+            else:
+                os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; a new file gets open()'s mode
+            os.replace(tmp, p)
+        except BaseException:
+            with suppress(FileNotFoundError):
+                os.unlink(tmp)
+            raise
+        finally:
+            _ACTIVE.remove(tmp)
