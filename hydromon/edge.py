@@ -129,6 +129,8 @@ def parse_sample(obj) -> tuple[int, float, float, float, float, float, float]:
         s = Sample.model_validate(obj)
     except ValidationError as exc:
         raise Rejected(*_classify(exc, obj)) from None
+    except OverflowError:  # an integer beyond any double (the bus's JSON decode refuses it first)
+        raise Rejected("non-finite", "a number beyond the range of a double") from None
     return (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5)  # pragma: no cover (fast path takes these)
 
 

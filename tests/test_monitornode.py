@@ -696,3 +696,10 @@ def test_an_unknown_field_whose_value_reads_as_infinity_is_an_unknown_field():
     with pytest.raises(Rejected) as info:
         parse_sample({**ok, "extra": "INF"})
     assert info.value.reason == "unknown-field"
+
+
+def test_an_integer_beyond_any_double_is_rejected_not_raised():
+    ok = {"seq": 0, "t": 0.0, "ug": 0.0, "x1": 0.0, "x3": 0.0, "x4": 0.0, "x5": 0.0}
+    with pytest.raises(Rejected) as info:
+        parse_sample({**ok, "t": 10 ** 400})  # was an OverflowError out of the model
+    assert info.value.reason == "non-finite"
