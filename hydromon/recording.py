@@ -24,7 +24,8 @@ import numpy as np
 from hydromon.contract import SAMPLE_LIMITS
 from plant_sim.params import RigConfig
 
-__all__ = ["CSV_COLUMNS", "RATE_TOL", "Recording", "read_csv", "load_recording", "check_sampling", "csv_text"]
+__all__ = ["CSV_COLUMNS", "RATE_TOL", "Recording", "read_csv", "load_recording", "check_increasing",
+           "check_sampling", "csv_text"]
 
 CSV_COLUMNS = ("t", "ug", "x1", "x3", "x4", "x5")
 RATE_TOL = 0.01  # allowed relative deviation of each sample interval from 1 / sample_rate
@@ -133,6 +134,18 @@ def _rate_hint(typical: float, h: float, sample_rate: float) -> str:
     return f"the file looks sampled at {1 / typical:.4g} Hz, not {sample_rate:g} Hz (or t is not in seconds)"
 
 
+def check_increasing(t: np.ndarray, where=lambda i: f"sample {i}") -> np.ndarray:
+    """The intervals of ``t`` [s], which must increase strictly (ValueError naming the first
+    sample that does not, by ``where(i)``)."""
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise ValueError(f"{where(i)}: t = {float(t[i])!r} s does not increase strictly "
+                         f"(previous {float(t[i - 1])!r} s)")
+    return dt
+
+
 def check_sampling(t: np.ndarray, sample_rate: float, where=lambda i: f"sample {i}") -> tuple[list[int], int]:
     """t [s] must increase strictly, the median interval must be one sample period
     1/sample_rate [Hz] (within TYPICAL_TOL), and every interval within RATE_TOL of a whole
@@ -143,12 +156,7 @@ def check_sampling(t: np.ndarray, sample_rate: float, where=lambda i: f"sample {
     ``where(i)`` names sample i in the error (e.g. its CSV line).
     """
     h = 1.0 / sample_rate
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise ValueError(f"{where(i)}: t = {float(t[i])!r} s does not increase strictly "
-                         f"(previous {float(t[i - 1])!r} s)")
+    dt = check_increasing(t, where)
     if not dt.size:
         return [], 0
     periods = np.rint(dt / h)
@@ -178,9 +186,9 @@ def _seq_taken(seq: np.ndarray, t: np.ndarray, name: str, first: int = 0) -> tup
     run. ``first`` is sample 0's index in the file (for the error)."""
     last = np.maximum.accumulate(seq)  # the last seq taken is the highest so far: drops are below it
     before = np.r_[-1, last[:-1]]
-    back = np.flatnonzero((seq == 0) & (before > 0))
-    if back.size:
-        i = int(back[0])
+    back = _restarts(seq)
+    if back:
+        i = back[0]
         raise ValueError(f"{name}: seq goes from {int(before[i])} back to 0 at sample {first + i} "
                          f"(t = {float(t[i])!r} s; the rig restarted): evaluate one run at a time, or replay "
                          "the recording (hydromon replay --direct), which handles restarts")

@@ -36,16 +36,12 @@ def read_csv(stream, name: str = "<csv>") -> tuple[np.ndarray, np.ndarray]:
 def _config_for(t: np.ndarray, config=None, name: str = "<record>", where=lambda i: f"sample {i}"):
     """The rig constants with the record's sample rate (its median period); ``where(i)``
     names sample i in an error (e.g. its CSV line)."""
+    from hydromon.recording import check_increasing
     from plant_sim.params import RigConfig
 
     if len(t) < 2:
         raise ValueError(f"{name}: {len(t)} sample(s); the audit needs more")
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise ValueError(f"{where(i)}: t = {float(t[i])!r} s does not increase strictly "
-                         f"(previous {float(t[i - 1])!r} s)")
+    dt = check_increasing(t, where)
     h = float(np.median(dt))
     dev = np.abs(dt - h)
     if np.max(dev) > 0.01 * h:
