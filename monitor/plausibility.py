@@ -34,21 +34,19 @@ Z_IMPLAUSIBLE = 4.0
 _IDX = np.array([PARAM_NAMES.index(n) for n in POSITIVE])
 
 
+def _impossible(v, s):
+    """The rule, elementwise: an estimate below -Z_IMPLAUSIBLE standard errors (an infinite or NaN
+    SE never counts)."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(s) & (v < -Z_IMPLAUSIBLE * s)
+
+
 def implausible_mask(params: np.ndarray, std_errors: np.ndarray) -> np.ndarray:
     """(n,) bool: rows of (n, len(PARAM_NAMES)) estimates and SEs [SI] with a POSITIVE parameter
-    below -Z_IMPLAUSIBLE standard errors (an infinite or NaN SE never counts)."""
-    v = params[:, _IDX]
-    s = std_errors[:, _IDX]
-    with np.errstate(invalid="ignore"):
-        bad = np.isfinite(s) & (v < -Z_IMPLAUSIBLE * s)
-    return bad.any(axis=1)
+    that is impossibly negative."""
+    return _impossible(params[:, _IDX], std_errors[:, _IDX]).any(axis=1)
 
 
 def implausible_names(params: Mapping[str, float], std_errors: Mapping[str, float]) -> tuple[str, ...]:
     """The POSITIVE parameters of one estimate [SI, by name] that are impossibly negative."""
-    out = []
-    for n in POSITIVE:
-        v, s = params.get(n, np.nan), std_errors.get(n, np.inf)
-        if np.isfinite(s) and v < -Z_IMPLAUSIBLE * s:
-            out.append(n)
-    return tuple(out)
+    return tuple(n for n in POSITIVE if _impossible(params.get(n, np.nan), std_errors.get(n, np.inf)))
