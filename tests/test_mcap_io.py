@@ -437,8 +437,10 @@ def test_recover_command_reports_the_lost_chunk(tmp_path, capsys):
     data, _ = write_messages(_config_and_samples(), flush_interval_ns=NS // 2)
     src = tmp_path / "flip.mcap"
     src.write_bytes(flip_in_chunk(data, 5))
-    assert cli_main(["recover", str(src), "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    assert cli_main(["recover", str(src), "--json"]) == 1  # written, but a script must not walk past the loss
+    out, err = capsys.readouterr()
+    report = json.loads(out)
+    assert "is missing data the source held" in err
     assert report["messages"] == 450 and report["chunks_lost"] == 1 and report["messages_lost"] == 50
     assert report["lost"][0]["byte"] == chunk_spans(data)[5][0] and report["lost"][0]["messages"] == 50
 

@@ -7,7 +7,8 @@ import os
 import sys
 
 NAME = "recover"
-HELP = "rewrite a truncated or damaged MCAP recording into a valid one with every surviving message"
+HELP = ("rewrite a truncated or damaged MCAP recording into a valid one with every surviving message "
+        "(exit 1 when damaged chunks or messages without a channel had to be left out)")
 
 
 def add_arguments(parser) -> None:
@@ -40,4 +41,9 @@ def run(args) -> int:
     else:
         print(f"{out}: {report.summary()}")
     print(f"hydromon recover: wrote {out}", file=sys.stderr)
+    # a file cut short is what recover is for (exit 0); data it had to leave out of the middle
+    # is a loss a script must not walk past: written, but exit 1
+    if report.chunks_lost or report.orphans:
+        print(f"hydromon recover: {out} is missing data the source held (see the report)", file=sys.stderr)
+        return 1
     return 0
