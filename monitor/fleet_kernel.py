@@ -14,6 +14,7 @@ from .estimates import estimates
 from .grading import grade_kernel
 from .identify import WORK_SIZE, identify_step
 from .layout import O_CLAMPED, O_ROWS
+from .plausibility import any_impossible
 
 N_P = len(PARAM_NAMES)
 
@@ -36,14 +37,17 @@ def assess_rig(st, hyper, g_f, g_c, min_rows, p, s):
 @njit(cache=True, error_model="numpy")
 def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sign, edges, margins, z,
               ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped,
-              slot, p, s, conv):
+              ev_bad, slot, p, s, conv):
     """Read out and grade rig r after batch sample i into event ``slot``.
 
     Kept out of the per-sample loop: it runs once per eval_every samples, and a call with this
     many arguments costs more than a sample's identification when made on every sample.
     ``p``, ``s`` (1, len(PARAM_NAMES)) and ``conv`` (1,) are the caller's scratch space.
     """
-    conv[0] = assess_rig(states[r], hyper, g_f, g_c, min_rows, p[0], s[0])
+    converged = assess_rig(states[r], hyper, g_f, g_c, min_rows, p[0], s[0])
+    bad = any_impossible(p[0], s[0])
+    # impossible estimates are not graded, and leave the hysteresis state as it was
+    conv[0] = converged and not bad
     level, grades, confidence = grade_kernel(p, s, conv, index, sign, edges, margins, z, bands[r:r + 1])
     ev_rig[slot] = r
     ev_sample[slot] = i
@@ -53,8 +57,9 @@ def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sig
     ev_params[slot] = p[0]
     ev_se[slot] = s[0]
     ev_grades[slot] = grades[0]
-    ev_conv[slot] = conv[0]
+    ev_conv[slot] = converged
     ev_clamped[slot] = states[r, O_CLAMPED]  # samples whose x1 emptied a chamber, so far
+    ev_bad[slot] = bad
 
 
 # nogil: Fleet's worker threads call it directly. Threads, not numba's prange: every view a
@@ -64,7 +69,8 @@ def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sig
 @njit(cache=True, nogil=True, error_model="numpy")
 def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
          index, sign, edges, margins, z, rig, samples,
-         ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped, slot):
+         ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped, ev_bad,
+         slot):
     """Samples order[lo:hi] of the batch, in that order; events from ``slot`` on. Returns the next slot."""
     work, p, s, conv = _scratch(ev_params.shape[1])
     for q in range(lo, hi):
@@ -76,7 +82,7 @@ def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g
         if (counts[r] + phase[r]) % eval_every == 0:
             _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sign, edges, margins, z,
                       ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv,
-                      ev_clamped, slot, p, s, conv)
+                      ev_clamped, ev_bad, slot, p, s, conv)
             slot += 1
     return slot
 
@@ -84,7 +90,8 @@ def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g
 @njit(cache=True, error_model="numpy")
 def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
                   index, sign, edges, margins, z, rig, samples,
-                  ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped):
+                  ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped,
+                  ev_bad):
     """Identify a batch of samples in arrival order; evaluate and grade rigs at their evaluation points
     (every eval_every samples of a rig, counted on that rig's samples, so results never depend on
     how arrivals were batched).
@@ -94,7 +101,8 @@ def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_
     """
     return _run(np.arange(rig.shape[0]), 0, rig.shape[0], states, consts, counts, phase, bands, hyper, m_f, m_c,
                 g_f, g_c, min_rows, eval_every, index, sign, edges, margins, z, rig, samples,
-                ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped, 0)
+                ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped,
+                ev_bad, 0)
 
 
 @njit(cache=True, error_model="numpy")

@@ -23,7 +23,7 @@ from .fleet_kernel import _run, assess_rig, partition_rigs, pipeline_step
 from .grading import Ranges, grade_kernel
 from .ident_options import IdentOptions, Kernels, new_state, reset_signals, rig_constants
 from .layout import O_CLAMPED, O_OUTLIERS, STATE_SIZE
-from .plausibility import implausible_mask, implausible_names
+from .plausibility import any_impossible, implausible_names
 
 N_P = len(PARAM_NAMES)
 
@@ -114,15 +114,9 @@ class Events:
 
     @staticmethod
     def of_kernel(arrays) -> Events:
-        """Events from the kernel's event arrays (owned by the caller), with the rows whose
-        estimates are physically impossible ungraded: level -1, confidence 0, grades -1."""
-        rig, sample, counts, level, conf, params, se, grades, conv, clamped = arrays
-        bad = implausible_mask(params, se)
-        if bad.any():
-            level[bad] = -1
-            conf[bad] = 0.0
-            grades[bad] = -1
-        return Events(rig, sample, counts, level, conf, params, se, grades, conv, clamped, bad)
+        """Events from the kernel's event arrays (owned by the caller; the kernel leaves rows with
+        physically impossible estimates ungraded: level -1, confidence 0, grades -1)."""
+        return Events(*arrays)
 
 
 class Fleet:
@@ -297,7 +291,8 @@ class Fleet:
         ng = len(self._ra.index)
         self._ev = (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
                     np.empty(cap, np.int64), np.empty(cap), np.empty((cap, N_P)), np.empty((cap, N_P)),
-                    np.empty((cap, ng), np.int64), np.empty(cap, np.bool_), np.empty(cap, np.int64))
+                    np.empty((cap, ng), np.int64), np.empty(cap, np.bool_), np.empty(cap, np.int64),
+                    np.empty(cap, np.bool_))
         self._ev_cap = cap
 
     def glitches(self, rig: int) -> dict[str, int]:
@@ -322,11 +317,12 @@ class Fleet:
         k, ra = self._k, self._ra
         conv = np.array([assess_rig(self.states[rig], k.hyper, k.g_f, k.g_c, float(self.options.min_rows),
                                     p[0], s[0])])
+        bad = np.array([any_impossible(p[0], s[0])])
         band = self.bands[rig:rig + 1].copy()
-        level, grades, conf = grade_kernel(p, s, conv, ra.index, ra.sign, ra.edges, ra.margins,
+        level, grades, conf = grade_kernel(p, s, conv & ~bad, ra.index, ra.sign, ra.edges, ra.margins,
                                            self.grade_z, band)
         one = Events.of_kernel([np.array([rig]), np.array([-1]), self.counts[rig:rig + 1].copy(), level, conf, p, s,
-                                grades, conv, np.array([self.x1_clamped(rig)])])
+                                grades, conv, np.array([self.x1_clamped(rig)]), bad])
         return one.assessment(0, ra.names)
 
 

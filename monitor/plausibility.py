@@ -21,32 +21,42 @@ evaluations of one record, on a rig whose input is right. So a wrong x1 zero (5 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
+from numba import njit
 
 from hydromon.contract import PARAM_NAMES
 
-__all__ = ["POSITIVE", "Z_IMPLAUSIBLE", "implausible_mask", "implausible_names"]
+__all__ = ["POSITIVE", "Z_IMPLAUSIBLE", "any_impossible", "impossible", "implausible_mask", "implausible_names"]
 
 POSITIVE = ("inv_beta_e", "CdW_sqrt_rho", "K_sv")
 Z_IMPLAUSIBLE = 4.0
-_IDX = np.array([PARAM_NAMES.index(n) for n in POSITIVE])
+_IDX = tuple(PARAM_NAMES.index(n) for n in POSITIVE)
 
 
-def _impossible(v, s):
-    """The rule, elementwise: an estimate below -Z_IMPLAUSIBLE standard errors (an infinite or NaN
-    SE never counts)."""
-    with np.errstate(invalid="ignore"):
-        return np.isfinite(s) & (v < -Z_IMPLAUSIBLE * s)
+@njit(cache=True)
+def impossible(v: float, s: float) -> bool:
+    """The rule: an estimate below -Z_IMPLAUSIBLE standard errors (an infinite or NaN SE never counts)."""
+    return math.isfinite(s) and v < -Z_IMPLAUSIBLE * s
+
+
+@njit(cache=True)
+def any_impossible(params, std_errors) -> bool:
+    """One rig's (len(PARAM_NAMES),) estimates and SEs [SI]: a POSITIVE parameter is impossibly
+    negative (the fleet kernel then leaves the rig ungraded and its hysteresis state as it was)."""
+    for i in _IDX:
+        if impossible(params[i], std_errors[i]):
+            return True
+    return False
 
 
 def implausible_mask(params: np.ndarray, std_errors: np.ndarray) -> np.ndarray:
-    """(n,) bool: rows of (n, len(PARAM_NAMES)) estimates and SEs [SI] with a POSITIVE parameter
-    that is impossibly negative."""
-    return _impossible(params[:, _IDX], std_errors[:, _IDX]).any(axis=1)
+    """(n,) bool: :func:`any_impossible` of each row of (n, len(PARAM_NAMES)) estimates and SEs."""
+    return np.array([any_impossible(p, s) for p, s in zip(params, std_errors)], dtype=bool)
 
 
 def implausible_names(params: Mapping[str, float], std_errors: Mapping[str, float]) -> tuple[str, ...]:
     """The POSITIVE parameters of one estimate [SI, by name] that are impossibly negative."""
-    return tuple(n for n in POSITIVE if _impossible(params.get(n, np.nan), std_errors.get(n, np.inf)))
+    return tuple(n for n in POSITIVE if impossible(float(params.get(n, np.nan)), float(std_errors.get(n, np.inf))))

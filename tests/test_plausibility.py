@@ -129,3 +129,29 @@ def test_bad_input_takes_precedence_over_stale():
     health = [orjson.loads(p) for _, p in MonitorCore().process(msgs)]
     after = [h["status"] for h in health if h["seq"] > 45]
     assert after and set(after) == {"bad-input"}, [(h["seq"], h["status"]) for h in health]
+
+
+def test_impossible_estimates_leave_the_hysteresis_state_as_it_was(g1_run):
+    """A rig graded from SI input, then fed pressures in bar: while its estimates are impossible
+    it is not graded, and the band each parameter is held in (the hysteresis state) does not move,
+    so the grade after the input is fixed is not pulled by what was graded from garbage."""
+    from monitor.pipeline import Fleet
+
+    fleet = Fleet()
+    r = fleet.add_rig("r1")
+    n = len(g1_run.t)
+    fleet.update(np.zeros(n, np.int64), g1_run.samples)
+    held = fleet.bands[r].copy()
+    assert (held >= 0).any()  # graded, bands held
+    bad = g1_run.samples / np.array([1, 1, BAR, BAR, 1])
+    seen = 0
+    for k in range(0, n, 10):
+        before = fleet.bands[r].copy()
+        ev = fleet.update(np.zeros(10, np.int64), bad[k:k + 10])
+        assert len(ev) == 1
+        if ev.implausible[0]:
+            seen += 1
+            assert ev.level[0] == -1 and ev.confidence[0] == 0.0 and (ev.grades[0] == -1).all()
+            np.testing.assert_array_equal(fleet.bands[r], before)
+        assert ev.converged[0]  # converged as before: the status says bad-input, not converging
+    assert seen > n // 20, seen  # most of the bad stretch is judged impossible
