@@ -14,6 +14,7 @@ import orjson
 import pytest
 
 from hydromon.bench import paper_var_samples
+from hydromon.commands.bench import DEFAULT_HISTORY
 from hydromon.naive import NaiveIdentifier
 from monitor.ident_options import IdentOptions
 from monitor.layout import OFFSETS
@@ -113,6 +114,35 @@ def test_bench_quick_json(tmp_path):
     assert rec["timestamp"] and rec["core_single"] == doc["core_single"]
     for k in ("platform", "cpu_count", "python", "numpy", "numba"):
         assert rec["machine"][k]
+    png = tmp_path / "history.png"  # the run just appended, drawn
+    from hydromon.cli import main
+
+    assert main(["bench", "--history", str(hist), "--plot-history", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_history_plot_draws_each_run_and_its_share_of_the_ceiling(tmp_path, capsys):
+    from hydromon.bench.history_plot import history_figure, load_history
+    from hydromon.cli import main
+
+    runs = load_history(DEFAULT_HISTORY)  # the project's own history parses whole
+    assert len(runs) >= 20
+    runs = [{"timestamp": "t0", "core_single": 2e5, "transport_ceiling": 2e5, "live": {"rigs": 750}},
+            {"timestamp": "t1", "core_single": 1e5, "transport_ceiling": 1.5e5, "live": {"rigs": None},
+             "details": {"quick": True}},
+            {"timestamp": "t2", "core_single": 3e5, "transport_ceiling": 3e5, "live": {"rigs": 1200}}]
+    ax_t, ax_l, ax_s = history_figure(runs).axes
+    share = [ln for ln in ax_s.lines if ln.get_label() == "live / ceiling"][0]
+    assert share.get_xdata().tolist() == [0, 2] and share.get_ydata().tolist() == [0.375, 0.4]
+    quick = [ln for ln in ax_t.lines if ln.get_label() == "core_single (--quick)"][0]
+    assert quick.get_xdata().tolist() == [1] and quick.get_markerfacecolor() == "none"
+    bad = tmp_path / "h.jsonl"
+    bad.write_text(json.dumps(runs[0]) + "\n" + '{"core_single": 1')  # a run killed while appending
+    assert main(["bench", "--history", str(bad), "--plot-history", str(tmp_path / "h.png")]) == 2
+    assert f"{bad}:2: not a JSON document" in capsys.readouterr().err
+    assert not (tmp_path / "h.png").exists()
+    assert main(["bench", "--history", str(tmp_path / "none.jsonl"), "--plot-history", str(tmp_path / "h.png")]) == 2
+    assert main(["bench", "--history", str(bad), "--plot-history", str(tmp_path / "no" / "h.png")]) == 2
 
 
 def test_bench_rejects_bad_flags():

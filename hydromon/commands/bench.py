@@ -23,6 +23,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--history", default=str(DEFAULT_HISTORY), metavar="FILE",
                         help="append the run to this JSON-lines file ('' = do not) "
                              "(default benchmarks/history.jsonl)")
+    parser.add_argument("--plot-history", default=None, metavar="PNG",
+                        help="measure nothing: draw the --history file's runs into PNG (throughput, live rigs "
+                             "and their share of the transport ceiling, each against its target)")
 
 
 def _fmt(v, unit: str = "") -> str:
@@ -100,7 +103,23 @@ def run(args) -> int:
     import orjson
 
     from hydromon.bench import BenchOptions, append_history, run_bench, to_json
+    from hydromon.commands._checks import writable_file
 
+    if args.plot_history is not None:
+        from hydromon.bench.history_plot import history_figure, load_history
+        from hydromon.commands._checks import replace_on_success
+
+        if not args.history:
+            raise ValueError("--plot-history needs a --history file to draw")
+        if not Path(args.history).is_file():
+            raise ValueError(f"--history {args.history!r}: no such file")
+        writable_file("--plot-history", args.plot_history)
+        runs = load_history(args.history)
+        fig = history_figure(runs)
+        with replace_on_success(args.plot_history, "wb") as f:
+            fig.savefig(f, dpi=110, format="png")
+        print(f"hydromon bench: {len(runs)} runs of {args.history} drawn into {args.plot_history}", file=sys.stderr)
+        return 0
     if not args.live_seconds > 0:
         raise ValueError(f"--live-seconds {args.live_seconds!r} must be > 0")
     kw = {}
