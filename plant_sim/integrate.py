@@ -1,6 +1,8 @@
 """Classical RK4 (paper eq 56) with internal substeps, for one rig or a fleet.
 
-Accuracy (measured against 200 substeps, re-checked by ``tests/test_integrate.py``, paper identification input, 10 s; max abs error over the run):
+Accuracy (measured against 200 substeps, re-checked by
+``tests/test_plant.py::test_substep_error_table``; paper identification input, 10 s; max abs
+error over the run):
 
     substeps  x1 [m]    x2 [m/s]  p1 [Pa]   p2 [Pa]   x5 [m]    x6 [m/s]
     1         1.6e-5    1.8e-3    1.1e3     1.1e3     3.8e-6    4.7e-4   (h = 10 ms)
