@@ -13,6 +13,9 @@ import sys
 
 from hydromon import commands
 
+DESCRIPTION = ("physics-based health grading of hydraulic position servos (Lin et al. 2023): simulated "
+               "or real rigs on Zenoh, graded live, recorded to MCAP; `hydromon COMMAND --help` for each")
+
 
 def _command_modules():
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda i: i.name):
@@ -21,7 +24,7 @@ def _command_modules():
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="hydromon", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="hydromon", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for mod in _command_modules():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)

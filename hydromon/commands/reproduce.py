@@ -14,7 +14,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--noise", default="none", metavar="MODEL",
                         help="none | realistic | stress | pct:F (default none)")
     parser.add_argument("--seeds", type=int, default=1, metavar="N",
-                        help="Table 2 over N noise seeds: mean |relative error| per parameter, both recipes")
+                        help="Table 2 over N noise seeds: mean |relative error| per parameter, both recipes (default 1)")
     parser.add_argument("--calibration-runs", type=int, default=40, metavar="N",
                         help="runs of the Table 3 calibration (0 = compare with our default ranges; default 40)")
     parser.add_argument("--plots", metavar="DIR", help="write PNGs of the estimates over time (Figs 10-12)")
