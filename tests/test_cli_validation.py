@@ -40,7 +40,7 @@ def no_bus(monkeypatch):
     def refuse(*_a, **_k):
         raise AssertionError("the bus was opened before the options were checked")
 
-    for mod in ("sim", "monitor", "replay"):
+    for mod in ("sim", "monitor", "replay", "record"):
         monkeypatch.setattr(f"hydromon.commands.{mod}.session_from_args", refuse)
 
 
@@ -295,3 +295,22 @@ def test_sigterm_while_writing_leaves_neither_a_part_file_nor_a_half_output(tmp_
         proc.kill()
     assert proc.returncode == 128 + signal.SIGTERM
     assert list(tmp_path.iterdir()) == []  # before: a .long.csv.*.part file stayed behind
+
+
+# -- record: its options before the bus -------------------------------------------------------
+
+@pytest.mark.parametrize("extra, needle", [
+    (["--rotate-s", "-1"], "--rotate-s -1.0 must be a finite number > 0 s"),
+    (["--rotate-s", "nan"], "--rotate-s nan must be a finite number > 0 s"),
+    (["--rotate-mb", "0"], "--rotate-mb 0.0 must be a finite number > 0 MB"),
+    (["--duration", "-1"], "--duration -1.0 must be a finite number >= 0 s"),
+    (["--duration", "inf"], "--duration inf must be a finite number >= 0 s"),
+    (["--out", "{tmp}/a-file/x.mcap"], "is not a directory"),
+    (["--out", "{tmp}/a-file/parts/"], "is not a directory"),
+])
+def test_record_checks_its_options_before_the_bus(tmp_path, capsys, no_bus, extra, needle):
+    (tmp_path / "a-file").write_text("x")
+    extra = [e.format(tmp=tmp_path) for e in extra]
+    assert main(["record", "--out", str(tmp_path / "r.mcap"), *extra]) == 2
+    one_error_line(capsys, "record", needle)
+    assert sorted(os.listdir(tmp_path)) == ["a-file"]  # nothing written
