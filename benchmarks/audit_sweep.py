@@ -17,6 +17,7 @@ Run: python benchmarks/audit_sweep.py
 
 from __future__ import annotations
 
+import argparse
 import time
 
 import numpy as np
@@ -135,6 +136,7 @@ def time_60s():
 
 
 def main():
+    argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
     t0 = time.perf_counter()
     rows, detail = sweep()
     print(f"Detection limits ({PROFILE}, {DURATION:g} s records, seeds {[s for s, _ in SEEDS]} at severity "

@@ -10,6 +10,8 @@ its +-3 SE. Run: python benchmarks/valve_grading.py
 
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 
 from monitor.grading import Ranges, grade_of_values
@@ -30,6 +32,7 @@ def choices() -> dict[str, Ranges]:
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
     severity = np.random.default_rng(7).uniform(0, 1, N)
     profiles = [PaperVariable(), Multisine(), Chirp()]
     for start in (0, 300):
