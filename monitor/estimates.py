@@ -8,7 +8,7 @@ omega_sv2 [rad^2/s^2], K_sv_omega_sv2 [m/(V s^2)], K_sv [m/V].
 The valve's static gain K_sv is read out on its own, not as K_sv omega^2 / omega^2: it needs
 only the ARX's DC gain, which any input identifies, while omega^2 needs excitation near the
 valve's bandwidth. A record that starts mid-run on a smooth input has none (omega^2 and
-K_sv omega^2 off by the same factor, up to 2x, their ratio within 0.02 %), so grading K_sv
+K_sv omega^2 off by the same factor: a true 1.2 read 1.6-3.6 joining 3 s in, README; their ratio within 0.02 %), so grading K_sv
 is what still sees a valve that lost gain.
 
 Standard errors: sigma^2 kappa P, with sigma^2 the residual variance and kappa the
