@@ -489,6 +489,31 @@ def test_recover_command_writes_next_to_the_file_and_will_not_overwrite(tmp_path
     assert cli_main(["recover", str(src), "-o", str(src), "--force"]) == 2  # never onto itself
 
 
+
+def test_recover_out_that_cannot_be_written_is_a_clear_error_and_a_failed_run_keeps_the_old_out(tmp_path, capsys):
+    data, _ = write_messages(sample_stream(200), flush_interval_ns=200_000_000)
+    src = tmp_path / "run.mcap"
+    src.write_bytes(data[: len(data) * 2 // 3])
+    (tmp_path / "dir").mkdir()
+    # a directory (was an IsADirectoryError traceback, exit 1) or a missing one (a bare errno)
+    assert cli_main(["recover", str(src), "-o", str(tmp_path / "dir"), "--force"]) == 2
+    assert f"--out '{tmp_path / 'dir'}' is a directory" in capsys.readouterr().err
+    assert cli_main(["recover", str(src), "-o", str(tmp_path / "no" / "x.mcap")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    # nothing recoverable after the magic: exit 2, and an existing OUT is left as it was (was
+    # truncated and replaced by an empty recording, exit 0)
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(MAGIC + b"\x5e" * 500)
+    out = tmp_path / "out.mcap"
+    out.write_bytes(b"mine")
+    assert cli_main(["recover", str(junk), "-o", str(out), "--force"]) == 2
+    assert "nothing to recover" in capsys.readouterr().err
+    assert out.read_bytes() == b"mine"
+    assert not (tmp_path / "junk.recovered.mcap").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir", "junk.mcap", "out.mcap", "run.mcap"]
+    assert cli_main(["recover", str(src), "-o", str(out), "--force"]) == 0
+    assert len(list(read_recording(out))) > 0
+
 # -- docs -----------------------------------------------------------------------------------
 def test_docs_contract_md_is_up_to_date():
     assert docs_gen.DOC_PATH.read_text() == docs_gen.render(), "run `python -m hydromon.docs_gen`"

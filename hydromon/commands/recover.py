@@ -28,14 +28,22 @@ def default_output(path: str) -> str:
 def run(args) -> int:
     from dataclasses import asdict
 
+    from hydromon.commands._checks import replace_on_success, writable_file
     from hydromon.mcap_io import recover
 
     if not os.path.isfile(args.file):
         raise FileNotFoundError(f"{args.file}: no such file")
     out = args.out or default_output(args.file)
+    writable_file("--out", out)  # a directory or a missing one: a clear error, not a traceback
     if os.path.exists(out) and not args.force:
         raise ValueError(f"{out} exists; pass --force to overwrite it")
-    report = recover(args.file, out)
+    if os.path.exists(out) and os.path.samefile(args.file, out):
+        raise ValueError(f"recover: destination {out} is the source")
+    # written whole beside OUT and renamed into it: a failed run leaves an existing OUT as it was
+    with replace_on_success(out, "wb") as f:
+        report = recover(args.file, f)
+        if report.messages == 0:  # before the rename: no empty "recovered" file, and exit 2
+            raise ValueError(f"{args.file}: nothing to recover ({report.summary()}); {out} not written")
     if args.json:
         print(json.dumps({"out": out, **asdict(report)}))
     else:
