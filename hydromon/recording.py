@@ -300,8 +300,7 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
             rig_id, data, seq = mcap_io.read_samples(str(path), rig=rig, rejected=rejected, configs=messages)
             stored = mcap_io.stored_configs(str(path), rig_id) if config is None else []
         except ValueError as exc:
-            hint = " (pick one with --rig ID)" if "several rigs" in str(exc) else ""
-            raise ValueError(f"{_named(name, exc)}{hint}") from None
+            raise ValueError(_named(name, exc).replace("; choose one", "; choose one with --rig ID")) from None
         where = f"{name} rig {rig_id!r}"
         if len(data) == 0:
             raise ValueError(f"{name}: rig {rig_id!r} has no samples")

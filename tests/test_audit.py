@@ -170,6 +170,49 @@ def test_cli_mcap(tmp_path, capsys):
     assert doc["cause"] == "load_offset"
 
 
+
+def test_audit_reads_a_record_as_evaluate_does(tmp_path, capsys):
+    """A review: the audit read files its own way. A re-sent (duplicate) MCAP message was "t does
+    not increase strictly", a config change applied the last constants to every sample, t in ms
+    was "force equation: only 0 training rows" after the work, and --config's sample_rate was
+    replaced by the file's median interval. Now it reads them as ``hydromon evaluate`` does."""
+    from hydromon.cli import main
+    from hydromon.commands.audit import load
+    from hydromon.mcap_io import RecordingWriter
+    from hydromon.recording import load_recording
+
+    run = simulate(parse_profile("paper-var"), 3.0, noise=noise_model("realistic"), seed=1)
+    other = run.config.model_copy(update={"V10": 0.12})
+    path = tmp_path / "rec.mcap"
+    with open(path, "wb") as f, RecordingWriter(f) as w:
+        w.write("hydro/rig/r1/config", run.config.model_dump_json().encode(), 0, 0)
+        for k, (t, row) in enumerate(zip(run.t, run.samples)):
+            t_ns = int(round(t * 1e9))
+            if k == 100:
+                w.write("hydro/rig/r1/config", other.model_dump_json().encode(), t_ns, t_ns)
+            payload = json.dumps(dict(seq=k, t=float(t), **dict(zip(("ug", "x1", "x3", "x4", "x5"),
+                                                                     map(float, row))))).encode()
+            w.write("hydro/rig/r1/sample", payload, t_ns, t_ns)
+            if k == 200:  # the same message twice
+                w.write("hydro/rig/r1/sample", payload, t_ns + 1, t_ns + 1)
+    config, samples = load(str(path))
+    rec = load_recording(path)
+    assert config == other == rec.config
+    np.testing.assert_array_equal(samples, run.samples[100:])
+    assert "config changed 1 time(s): auditing the 200 samples after the last change" in capsys.readouterr().err
+
+    ms = tmp_path / "ms.csv"
+    ms.write_text("t,ug,x1,x3,x4,x5\n" + "".join(",".join(repr(float(v)) for v in (1e3 * t, *row)) + "\n"
+                                                 for t, row in zip(run.t, run.samples)))
+    assert main(["audit", str(ms)]) == 2
+    assert "t looks like milliseconds" in capsys.readouterr().err
+    csv = tmp_path / "rec.csv"
+    write_csv(csv, run)
+    conf = tmp_path / "rig.json"
+    conf.write_text(json.dumps({"sample_rate": 200.0}))
+    assert main(["audit", str(csv), "--config", str(conf)]) == 2
+    assert "not 200 Hz" in capsys.readouterr().err
+
 def write_csv(path, run) -> None:
     """The record as the user's CSV (t,ug,x1,x3,x4,x5 in SI; floats written exactly)."""
     with open(path, "w") as f:

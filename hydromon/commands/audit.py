@@ -33,59 +33,54 @@ def read_csv(stream, name: str = "<csv>") -> tuple[np.ndarray, np.ndarray]:
     return data[:, 0], data[:, 1:]
 
 
-def _config_for(t: np.ndarray, config=None, name: str = "<record>", where=lambda i: f"sample {i}"):
-    """The rig constants with the record's sample rate (its median period); ``where(i)``
-    names sample i in an error (e.g. its CSV line)."""
-    from hydromon.recording import check_increasing
-    from plant_sim.params import RigConfig
-
-    if len(t) < 2:
-        raise ValueError(f"{name}: {len(t)} sample(s); the audit needs more")
-    dt = check_increasing(t, where)
-    h = float(np.median(dt))
-    dev = np.abs(dt - h)
-    if np.max(dev) > 0.01 * h:
-        i = int(np.argmax(dev)) + 1
-        raise ValueError(f"{where(i)}: t = {float(t[i])!r} s is {float(dt[i - 1])!r} s after the previous "
-                         f"sample; the audit needs evenly spaced samples (median period {h:g} s, 1 % "
-                         "tolerance; no gaps)")
-    base = config or RigConfig()
-    return base.model_copy(update={"sample_rate": 1.0 / h})
+def _no_gaps(rec, csv: bool) -> None:
+    """The audit fits and re-simulates one stretch: a gap (whole missing sample periods, a seq
+    jump, an invalid sample skipped) is an error naming where it is."""
+    if not rec.restarts:
+        return
+    i = rec.restarts[0]
+    where = f"{rec.source} line {i + 2}" if csv else f"{rec.source} rig {rec.rig!r} sample {i}"
+    skipped = f"; {rec.rejected} invalid sample(s) skipped" if rec.rejected else ""
+    raise ValueError(f"{where}: t = {float(rec.t[i])!r} s follows a gap ({len(rec.restarts)} gap(s), {rec.missing} "
+                     f"sample(s) missing{skipped}): the audit needs one stretch of evenly spaced samples without "
+                     "gaps (hydromon evaluate grades across them)")
 
 
 def load(path: str, rig: str | None = None, config=None):
-    """``(config, samples)`` from a CSV or MCAP file; a ValueError (FileNotFoundError) names
-    the file and what is wrong with it."""
+    """``(config, samples)`` from a CSV or MCAP file, read and validated as ``hydromon evaluate``
+    reads it (``hydromon.recording.load_recording``: the sample rate is the rig config's, an
+    MCAP goes by seq, its duplicate messages are dropped and only the samples after its last
+    config change are taken); a ValueError (FileNotFoundError) names the file and what is wrong
+    with it. A gap is an error: the audit needs one stretch."""
+    from hydromon.recording import load_recording
+
     p = Path(path)
     name = str(p)
     if not p.exists():
         raise FileNotFoundError(f"{name}: no such file")
     if p.is_dir():
         raise ValueError(f"{name}: is a directory; give a .csv or .mcap file")
-    if p.suffix.lower() == ".mcap":
+    rec = load_recording(p, rig=rig, config=config)
+    csv = p.suffix.lower() == ".csv"
+    _no_gaps(rec, csv)
+    if len(rec.samples) < 2:
+        raise ValueError(f"{name}: {len(rec.samples)} sample(s); the audit needs more")
+    if config is None and csv:  # once the file is read: an error stays one line
+        print(f"hydromon audit: {name}: the paper's rig constants (a CSV carries none; give yours with --config FILE)",
+              file=sys.stderr)
+    elif config is None:
         from hydromon import mcap_io
 
         try:
-            rig_id, data, _ = mcap_io.read_samples(str(p), rig)
-        except ValueError as exc:
-            msg = str(exc).replace("; choose one", "; choose one with --rig ID")
-            raise ValueError(msg if msg.startswith(name) else f"{name}: {msg}") from None
-        if config is None:
-            try:
-                config = mcap_io.read_rig_config(str(p), rig_id)
-            except ValueError:
-                print(f"hydromon audit: no rig config for {rig_id!r} in the recording; using the paper's",
-                      file=sys.stderr)
-        return _config_for(data[:, 0], config, f"{name} rig {rig_id!r}",
-                           lambda i: f"{name} rig {rig_id!r} sample {i}"), data[:, 1:]
-    if rig is not None:
-        raise ValueError("--rig selects a rig of an MCAP recording; a CSV holds one rig")
-    t, samples = read_csv(p)
-    found = _config_for(t, config, name, lambda i: f"{name} line {i + 2}")
-    if config is None:  # once the file is read: an error stays one line
-        print(f"hydromon audit: {name}: the paper's rig constants (a CSV carries none; give yours with --config FILE)",
-              file=sys.stderr)
-    return found, samples
+            mcap_io.read_rig_config(str(p), rec.rig)
+        except ValueError:
+            print(f"hydromon audit: no rig config for {rec.rig!r} in the recording; using the paper's",
+                  file=sys.stderr)
+    if rec.config_changes:
+        print(f"hydromon audit: {name}: the rig's config changed {rec.config_changes} time(s): auditing the "
+              f"{len(rec.samples)} samples after the last change with its constants ({rec.skipped} before it "
+              "skipped), as hydromon evaluate does", file=sys.stderr)
+    return rec.config, rec.samples
 
 
 def run(args) -> int:
