@@ -154,6 +154,29 @@ def test_mcap_recording_is_graded(g4_run, tmp_path, capsys):
         load_recording(p, rig="other")
 
 
+
+def test_an_mcap_without_the_rigs_config_says_the_papers_constants_were_taken(g4_run, tmp_path, capsys):
+    """A review: evaluate said "rig constants as recorded" of an MCAP holding no config for the
+    rig, and graded it with the paper's constants."""
+    from hydromon.mcap_io import RecordingWriter
+
+    p = tmp_path / "bare.mcap"
+    with open(p, "wb") as f, RecordingWriter(f) as w:
+        for k, (t, row) in enumerate(zip(g4_run.t[:50], g4_run.samples)):
+            payload = dict(seq=k, t=float(t), **dict(zip(CSV_COLUMNS[1:], map(float, row))))
+            w.write("hydro/rig/g4/sample", json.dumps(payload).encode(), k * 10**7, k * 10**7)
+    assert main(["evaluate", str(p), "--json"]) == 0
+    err = capsys.readouterr().err
+    assert "rig constants: the paper's at 100 Hz (the recording holds no config for the rig" in err
+    assert "as recorded" not in err
+    with open(p, "wb") as f, RecordingWriter(f) as w:
+        w.write("hydro/rig/g4/config", g4_run.config.model_dump_json().encode(), 0, 0)
+        for k, (t, row) in enumerate(zip(g4_run.t[:50], g4_run.samples)):
+            payload = dict(seq=k, t=float(t), **dict(zip(CSV_COLUMNS[1:], map(float, row))))
+            w.write("hydro/rig/g4/sample", json.dumps(payload).encode(), k * 10**7, k * 10**7)
+    assert main(["evaluate", str(p), "--json"]) == 0
+    assert "rig constants as recorded" in capsys.readouterr().err
+
 def test_multi_rig_mcap_needs_rig(g4_run, tmp_path):
     from hydromon.mcap_io import RecordingWriter
 

@@ -38,11 +38,26 @@ def config_from_args(args):
         raise ValueError(f"--config {path}: {where}: {first.get('msg')} ({exc.error_count()} error(s))") from None
 
 
-def constants_line(config, given: bool, suffix: str) -> str:
-    """Where a record's rig constants came from, for the commands' stderr header."""
+def constants_line(config, given: bool, suffix: str, recorded: bool = True) -> str:
+    """Where a record's rig constants came from, for the commands' stderr header; ``recorded``:
+    an MCAP holds a config for the rig (else the paper's constants were taken)."""
     if given:
         return f"rig constants from --config ({config.sample_rate:g} Hz)"
     if suffix == ".csv":
         return (f"rig constants: the paper's at {config.sample_rate:g} Hz (a CSV carries none; give yours with "
                 "--config FILE)")
+    if not recorded:
+        return (f"rig constants: the paper's at {config.sample_rate:g} Hz (the recording holds no config for the "
+                "rig; give yours with --config FILE)")
     return "rig constants as recorded"
+
+
+def has_recorded_config(path, rig: str) -> bool:
+    """Whether the MCAP at ``path`` holds a config of ``rig`` (metadata or a config message)."""
+    from hydromon import mcap_io
+
+    try:
+        mcap_io.read_rig_config(str(path), rig)
+    except ValueError:
+        return False
+    return True

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hydromon.commands._rigconfig import add_config_argument, config_from_args
+from hydromon.commands._rigconfig import add_config_argument, config_from_args, has_recorded_config
 
 NAME = "audit"
 HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named model extension explains it"
@@ -68,14 +68,8 @@ def load(path: str, rig: str | None = None, config=None):
     if config is None and csv:  # once the file is read: an error stays one line
         print(f"hydromon audit: {name}: the paper's rig constants (a CSV carries none; give yours with --config FILE)",
               file=sys.stderr)
-    elif config is None:
-        from hydromon import mcap_io
-
-        try:
-            mcap_io.read_rig_config(str(p), rec.rig)
-        except ValueError:
-            print(f"hydromon audit: no rig config for {rec.rig!r} in the recording; using the paper's",
-                  file=sys.stderr)
+    elif config is None and not has_recorded_config(p, rec.rig):
+        print(f"hydromon audit: no rig config for {rec.rig!r} in the recording; using the paper's", file=sys.stderr)
     if rec.config_changes:
         print(f"hydromon audit: {name}: the rig's config changed {rec.config_changes} time(s): auditing the "
               f"{len(rec.samples)} samples after the last change with its constants ({rec.skipped} before it "

@@ -6,7 +6,9 @@ import json
 import sys
 
 from hydromon.commands._ranges import add_ranges_argument, ranges_from_args
-from hydromon.commands._rigconfig import add_config_argument, config_from_args, constants_line
+from hydromon.commands._rigconfig import (
+    add_config_argument, config_from_args, constants_line, has_recorded_config,
+)
 
 NAME = "evaluate"
 HELP = "grade one recording (.mcap, or .csv with columns t,ug,x1,x3,x4,x5 in SI units)"
@@ -39,8 +41,10 @@ def run(args) -> int:
     config = config_from_args(args)
     rec = load_recording(args.file, rig=args.rig, config=config)
     skipped = f" ({rec.skipped} before its last config change skipped)" if rec.skipped else ""
+    suffix = Path(args.file).suffix.lower()
+    recorded = config is not None or suffix != ".mcap" or has_recorded_config(args.file, rec.rig)
     print(f"hydromon evaluate: {rec.source}: rig {rec.rig}, {len(rec.samples)} samples{skipped}; "
-          f"{constants_line(rec.config, config is not None, Path(args.file).suffix.lower())}", file=sys.stderr)
+          f"{constants_line(rec.config, config is not None, suffix, recorded)}", file=sys.stderr)
     if args.refine:
         print(f"hydromon evaluate: refining over {len(rec.samples) / rec.config.sample_rate:g} s of data "
               f"(about {0.1 * len(rec.samples) / rec.config.sample_rate:.0f} s)", file=sys.stderr)
