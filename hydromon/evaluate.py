@@ -69,8 +69,7 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:
     """The whole-record fit (which sees what the streaming estimates saw: glitches replaced)
     over the longest stretch without a gap (the fit integrates the model from sample to sample)."""
-    bounds = [0, *recording.restarts, len(recording.samples)]
-    lo, hi = max(zip(bounds[:-1], bounds[1:]), key=lambda b: b[1] - b[0])
+    lo, hi = recording.longest_stretch()
     try:
         ref = refine(recording.samples[lo:hi], recording.config, assessment.params, options=options)
     except ValueError as exc:  # too short a stretch: the streaming evaluation still stands

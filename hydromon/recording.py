@@ -58,6 +58,11 @@ class Recording:
         """The span the samples cover [s]: first to last sample plus one period, gaps included."""
         return (len(self.samples) + self.missing) / self.config.sample_rate
 
+    def longest_stretch(self) -> tuple[int, int]:
+        """``(lo, hi)``: samples[lo:hi] is the longest stretch without a gap (the first of equals)."""
+        bounds = [0, *self.restarts, len(self.samples)]
+        return max(zip(bounds[:-1], bounds[1:]), key=lambda b: b[1] - b[0])
+
 
 def read_csv(src, name: str = "<csv>") -> np.ndarray:
     """Parse a CSV with header columns t,ug,x1,x3,x4,x5 (any order, extra columns ignored).

@@ -33,17 +33,17 @@ def read_csv(stream, name: str = "<csv>") -> tuple[np.ndarray, np.ndarray]:
     return data[:, 0], data[:, 1:]
 
 
-def _no_gaps(rec, csv: bool) -> None:
-    """The audit fits and re-simulates one stretch: a gap (whole missing sample periods, a seq
-    jump, an invalid sample skipped) is an error naming where it is."""
+def _stretch(rec, csv: bool) -> dict | None:
+    """The audit fits and re-simulates one stretch of evenly spaced samples: across a gap (whole
+    missing sample periods, a seq jump, an invalid sample skipped) it takes the longest stretch
+    without one, as ``evaluate --refine`` does, and says which. None when there is no gap."""
     if not rec.restarts:
-        return
-    i = rec.restarts[0]
-    where = f"{rec.source} line {i + 2}" if csv else f"{rec.source} rig {rec.rig!r} sample {i}"
-    skipped = f"; {rec.rejected} invalid sample(s) skipped" if rec.rejected else ""
-    raise ValueError(f"{where}: t = {float(rec.t[i])!r} s follows a gap ({len(rec.restarts)} gap(s), {rec.missing} "
-                     f"sample(s) missing{skipped}): the audit needs one stretch of evenly spaced samples without "
-                     "gaps (hydromon evaluate grades across them)")
+        return None
+    lo, hi = rec.longest_stretch()
+    where = (lambda i: f"line {i + 2}") if csv else (lambda i: f"sample {i}")
+    return {"first": lo, "last": hi - 1, "t_start": float(rec.t[lo]), "t_end": float(rec.t[hi - 1]),
+            "samples": hi - lo, "of": len(rec.samples), "gaps": len(rec.restarts), "missing": rec.missing,
+            "rejected": rec.rejected, "where": f"{where(lo)} to {where(hi - 1)}"}
 
 
 def load(path: str, rig: str | None = None, config=None):
@@ -51,7 +51,8 @@ def load(path: str, rig: str | None = None, config=None):
     reads it (``hydromon.recording.load_recording``: the sample rate is the rig config's, an
     MCAP goes by seq, its duplicate messages are dropped and only the samples after its last
     config change are taken); a ValueError (FileNotFoundError) names the file and what is wrong
-    with it. A gap is an error: the audit needs one stretch."""
+    with it. Returns ``(config, samples, stretch)``: across gaps, the samples of the longest
+    stretch without one, which ``stretch`` describes (None: no gap, every sample)."""
     from hydromon.recording import load_recording
 
     p = Path(path)
@@ -62,9 +63,16 @@ def load(path: str, rig: str | None = None, config=None):
         raise ValueError(f"{name}: is a directory; give a .csv or .mcap file")
     rec = load_recording(p, rig=rig, config=config)
     csv = p.suffix.lower() == ".csv"
-    _no_gaps(rec, csv)
-    if len(rec.samples) < 2:
-        raise ValueError(f"{name}: {len(rec.samples)} sample(s); the audit needs more")
+    stretch = _stretch(rec, csv)
+    samples = rec.samples
+    if stretch is not None:
+        samples = rec.samples[stretch["first"]:stretch["last"] + 1]
+        skipped = f", {rec.rejected} invalid sample(s) skipped" if rec.rejected else ""
+        print(f"hydromon audit: {name}: {stretch['gaps']} gap(s) ({rec.missing} sample(s) missing{skipped}): "
+              f"auditing the longest stretch without one, {stretch['where']} (t = {stretch['t_start']:g} to "
+              f"{stretch['t_end']:g} s, {stretch['samples']} of {stretch['of']} samples)", file=sys.stderr)
+    if len(samples) < 2:
+        raise ValueError(f"{name}: {len(samples)} sample(s) in one stretch; the audit needs more")
     if config is None and csv:  # once the file is read: an error stays one line
         print(f"hydromon audit: {name}: the paper's rig constants (a CSV carries none; give yours with --config FILE)",
               file=sys.stderr)
@@ -74,7 +82,7 @@ def load(path: str, rig: str | None = None, config=None):
         print(f"hydromon audit: {name}: the rig's config changed {rec.config_changes} time(s): auditing the "
               f"{len(rec.samples)} samples after the last change with its constants ({rec.skipped} before it "
               "skipped), as hydromon evaluate does", file=sys.stderr)
-    return rec.config, rec.samples
+    return rec.config, samples, stretch
 
 
 def run(args) -> int:
@@ -88,13 +96,13 @@ def run(args) -> int:
         raise ValueError(f"--train-fraction {args.train_fraction!r}: {exc}") from None
     if args.report:
         writable_dir("--report", args.report)
-    config, samples = load(args.file, args.rig, config_from_args(args))
+    config, samples, stretch = load(args.file, args.rig, config_from_args(args))
     result = audit(samples, config, options)
     if args.report:
         path = write_report(result, args.report)
         print(f"hydromon audit: report -> {path}", file=sys.stderr)
     if args.json:
-        print(json.dumps(to_json(result)))
+        print(json.dumps({**to_json(result), "stretch": stretch}))
     else:
         print(summary(result))
     return 0
