@@ -636,6 +636,11 @@ def test_rejection_log_is_rate_limited_per_reason(caplog):
     assert lines[3].endswith("(+4 more since the last report)")
 
 
+def _still_running(proc) -> None:
+    if proc.poll() is not None:
+        raise AssertionError(f"the monitor exited early ({proc.returncode}): {proc.stderr.read()[-2000:]}")
+
+
 @pytest.mark.network
 @pytest.mark.timeout(90)
 def test_monitor_command_runs_for_its_duration_and_reports_its_counts():
@@ -644,18 +649,23 @@ def test_monitor_command_runs_for_its_duration_and_reports_its_counts():
     import sys
 
     ep = free_tcp_endpoint()
-    proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--listen", ep, "--duration", "6",
-                             "--node", "cli-mon"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    try:
-        with open_session("peer", connect=[ep]) as s:
+    # this session listens and the monitor connects to it: the monitor's session is up as soon as
+    # it opens. The other way round (monitor --listen, this session --connect before the process
+    # listened), zenoh's connect retries back off to every 4 s, and up to 4 s of the monitor's
+    # 6 s went by before this session reached it: under load the 600 samples then did not all get
+    # in before the monitor stopped (reproduced: "540 samples, 54 health messages").
+    with open_session("peer", listen=[ep]) as s:
+        proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--connect", ep, "--duration", "6",
+                                 "--node", "cli-mon"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        try:
             wait_for(lambda: any(r.ok is not None for r in s.liveliness().get("hydro/monitor/cli-mon", timeout=1.0)),
-                  60, "the monitor process")
+                     60, "the monitor process", alive=lambda: _still_running(proc))
             run_sim(s, FleetSpec(rigs=SPEC.rigs[:2]), rate=0, duration=3.0)
             s.put("hydro/rig/x/sample", b"{oops")
-        _, err = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
+            _, err = proc.communicate(timeout=60)
+        finally:
+            proc.kill()
     assert proc.returncode == 0, err
     assert "2 rig(s), 600 samples, 60 health messages; rejected: not-json 1;" in err
 
