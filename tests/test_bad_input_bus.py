@@ -168,34 +168,35 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
     ep = free_tcp_endpoint()
     log_path = tmp_path / "monitor.log"
     received: list[tuple[str, bytes]] = []
-    with open(log_path, "wb") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--listen", ep, "--node", "bad-in"],
+    # this session listens and the monitor process connects to it, so the two meet as soon as
+    # the process opens its session (not at one of zenoh's connect retries, every 4 s at most)
+    with open(log_path, "wb") as log, open_session("peer", listen=[ep]) as s:
+        proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--connect", ep, "--node", "bad-in"],
                                 stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 env={**os.environ, "PYTHONUNBUFFERED": "1"})
         try:
-            with open_session("peer", connect=[ep]) as s:
-                sub = s.declare_subscriber(f"{NS}/rig/*/health", zenoh.handlers.FifoChannel(100_000))
-                wait_for(lambda: any(r.ok is not None for r in s.liveliness().get(f"{NS}/monitor/bad-in", timeout=1.0)),
-                         180, "the monitor's liveliness token", alive=_alive(proc))
-                pubs: dict[str, zenoh.Publisher] = {}
-                for key, payload in msgs:  # one session, one link: zenoh keeps this order
-                    pub = pubs.get(key)
-                    if pub is None:
-                        pub = pubs[key] = s.declare_publisher(key, encoding=JSON, congestion_control=BLOCK)
-                    pub.put(payload)
+            sub = s.declare_subscriber(f"{NS}/rig/*/health", zenoh.handlers.FifoChannel(100_000))
+            wait_for(lambda: any(r.ok is not None for r in s.liveliness().get(f"{NS}/monitor/bad-in", timeout=1.0)),
+                     180, "the monitor's liveliness token", alive=_alive(proc))
+            pubs: dict[str, zenoh.Publisher] = {}
+            for key, payload in msgs:  # one session, one link: zenoh keeps this order
+                pub = pubs.get(key)
+                if pub is None:
+                    pub = pubs[key] = s.declare_publisher(key, encoding=JSON, congestion_control=BLOCK)
+                pub.put(payload)
 
-                def drain() -> bool:
-                    while (m := sub.try_recv()) is not None:
-                        received.append((str(m.key_expr), m.payload.to_bytes()))
-                    got = _by_rig(received)
-                    return all(r in got and orjson.loads(got[r][-1])["seq"] == health_seqs(r, N)[-1]
-                               for r in SPEC.ids)
+            def drain() -> bool:
+                while (m := sub.try_recv()) is not None:
+                    received.append((str(m.key_expr), m.payload.to_bytes()))
+                got = _by_rig(received)
+                return all(r in got and orjson.loads(got[r][-1])["seq"] == health_seqs(r, N)[-1]
+                           for r in SPEC.ids)
 
-                wait_for(drain, 180, "the last verdict of every good rig", alive=_alive(proc))
-                assert proc.poll() is None  # still up after all of it
-                assert any(r.ok is not None for r in s.liveliness().get(f"{NS}/monitor/bad-in", timeout=5.0))
-                for pub in pubs.values():
-                    pub.undeclare()
+            wait_for(drain, 180, "the last verdict of every good rig", alive=_alive(proc))
+            assert proc.poll() is None  # still up after all of it
+            assert any(r.ok is not None for r in s.liveliness().get(f"{NS}/monitor/bad-in", timeout=5.0))
+            for pub in pubs.values():
+                pub.undeclare()
             proc.send_signal(signal.SIGINT)
             assert proc.wait(30) == 0, log_path.read_text()
         finally:

@@ -196,8 +196,13 @@ def _live_seqs(path) -> set[int]:
 
 
 def _record_process(out, ep, log):
+    """``hydromon record`` connecting to ``ep``, where the test's session already listens: the
+    recorder's session is up as soon as it opens. (The other way round, the test's session
+    connected before the process listened, and zenoh's connect retries, backing off to every
+    4 s, decided when the two met: one CI run waited 45 s in vain, and under load a monitor
+    process met its test up to 4 s late.)"""
     return subprocess.Popen(
-        [sys.executable, "-m", "hydromon.cli", "record", "--out", str(out), "--listen", ep],
+        [sys.executable, "-m", "hydromon.cli", "record", "--out", str(out), "--connect", ep],
         stdout=log, stderr=log, env={**os.environ, "PYTHONUNBUFFERED": "1"})
 
 
@@ -220,30 +225,29 @@ def _wait_subscribed(pub, proc, log_path):
 def test_sigkilled_recorder_loses_at_most_its_last_second(tmp_path):
     ep = free_tcp_endpoint()
     out = tmp_path / "killed.mcap"
-    with open(tmp_path / "record.log", "wb") as log:
+    with open(tmp_path / "record.log", "wb") as log, open_session("peer", listen=[ep]) as session:
         proc = _record_process(out, ep, log)
         try:
-            with open_session("peer", connect=[ep]) as session:
-                pub = session.declare_publisher(sample_key("k1"), congestion_control=BLOCK)
-                _wait_subscribed(pub, proc, tmp_path / "record.log")
-                sent_ns = []
-                start = time.monotonic()
-                i = 0
-                while time.monotonic() - start < 3.0:  # 100 Hz for ~3 s
-                    now = time.time_ns()
-                    pub.put(sample_bytes(i, now / NS))
-                    sent_ns.append(now)
-                    i += 1
-                    time.sleep(0.01)
-                    if i % 15 == 0:
-                        # what is on disk now is what a kill now would leave: check it too
-                        snap_ns = time.time_ns()
-                        on_disk = _live_seqs(out)
-                        due = {k for k, t in enumerate(sent_ns) if t < snap_ns - NS}
-                        assert due <= on_disk, f"{len(due - on_disk)} samples > 1 s old not on disk"
-                kill_ns = time.time_ns()
-                proc.send_signal(signal.SIGKILL)
-                proc.wait(20)
+            pub = session.declare_publisher(sample_key("k1"), congestion_control=BLOCK)
+            _wait_subscribed(pub, proc, tmp_path / "record.log")
+            sent_ns = []
+            start = time.monotonic()
+            i = 0
+            while time.monotonic() - start < 3.0:  # 100 Hz for ~3 s
+                now = time.time_ns()
+                pub.put(sample_bytes(i, now / NS))
+                sent_ns.append(now)
+                i += 1
+                time.sleep(0.01)
+                if i % 15 == 0:
+                    # what is on disk now is what a kill now would leave: check it too
+                    snap_ns = time.time_ns()
+                    on_disk = _live_seqs(out)
+                    due = {k for k, t in enumerate(sent_ns) if t < snap_ns - NS}
+                    assert due <= on_disk, f"{len(due - on_disk)} samples > 1 s old not on disk"
+            kill_ns = time.time_ns()
+            proc.send_signal(signal.SIGKILL)
+            proc.wait(20)
         finally:
             if proc.poll() is None:
                 proc.kill()
@@ -265,18 +269,17 @@ def test_sigkilled_recorder_loses_at_most_its_last_second(tmp_path):
 def test_sigterm_stops_the_recorder_cleanly_with_a_complete_file(tmp_path):
     ep = free_tcp_endpoint()
     out = tmp_path / "clean.mcap"
-    with open(tmp_path / "record.log", "wb") as log:
+    with open(tmp_path / "record.log", "wb") as log, open_session("peer", listen=[ep]) as session:
         proc = _record_process(out, ep, log)
         try:
-            with open_session("peer", connect=[ep]) as session:
-                pub = session.declare_publisher(sample_key("k2"), congestion_control=BLOCK)
-                _wait_subscribed(pub, proc, tmp_path / "record.log")
-                for i in range(50):
-                    pub.put(sample_bytes(i, i * 0.01))
-                # the live file is flushed within the flush interval: all 50 become readable
-                wait_for(lambda: _live_count(out) == 50, 20, "the 50 samples in the live file")
-                proc.send_signal(signal.SIGTERM)
-                assert proc.wait(30) == 0
+            pub = session.declare_publisher(sample_key("k2"), congestion_control=BLOCK)
+            _wait_subscribed(pub, proc, tmp_path / "record.log")
+            for i in range(50):
+                pub.put(sample_bytes(i, i * 0.01))
+            # the live file is flushed within the flush interval: all 50 become readable
+            wait_for(lambda: _live_count(out) == 50, 20, "the 50 samples in the live file")
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(30) == 0
         finally:
             if proc.poll() is None:
                 proc.kill()
