@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import os
 import sys
 
 from hydromon import commands
@@ -39,6 +40,12 @@ def main(argv: list[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:  # stdout closed by the reader (`... --json | head`): not our error
+        try:
+            sys.stdout = open(os.devnull, "w")  # the interpreter's final flush must not fail again
+        except OSError:
+            pass
+        return 141  # 128 + SIGPIPE, as a shell reports a pipe's writer
     except (ValueError, FileNotFoundError) as exc:
         print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -90,10 +90,14 @@ def read_csv(src, name: str = "<csv>") -> np.ndarray:
         raise ValueError(f"{name} line 1: column(s) {', '.join(dup)} appear more than once")
     cols = [header.index(c) for c in CSV_COLUMNS]
     rows = []
+    blank = None  # the first blank line seen: an error only if a row follows it
     for row in reader:
         line = reader.line_num
         if not row or all(not c.strip() for c in row):
-            raise ValueError(f"{name} line {line}: empty line")
+            blank = blank or line
+            continue
+        if blank is not None:
+            raise ValueError(f"{name} line {blank}: empty line")
         if len(row) != len(header):
             raise ValueError(f"{name} line {line}: {len(row)} fields, the header has {len(header)}")
         vals = []

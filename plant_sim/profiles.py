@@ -124,11 +124,20 @@ class FromFile(Profile):
     u_data: np.ndarray = field(default=None, repr=False, compare=False)
     name = "file"
 
+    # [V] a command beyond this is not a servo-valve voltage (the bus contract's ug limit; a
+    # file in mV or raw counts): refused rather than simulated into out-of-contract samples
+    UG_LIMIT = 1e3
+
     @classmethod
     def load(cls, path: str | Path) -> "FromFile":
-        with open(path, newline="") as fh:
-            reader = csv.DictReader(fh)
-            rows = [(reader.line_num, r) for r in reader]
+        try:
+            with open(path, newline="") as fh:
+                reader = csv.DictReader(fh)
+                rows = [(reader.line_num, r) for r in reader]
+        except FileNotFoundError:
+            raise FileNotFoundError(f"profile file {str(path)!r}: no such file") from None
+        except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
+            raise ValueError(f"profile file {str(path)!r}: cannot be read as CSV text ({exc.__class__.__name__})") from None
         if not rows or "t" not in rows[0][1] or "ug" not in rows[0][1]:
             raise ValueError(f"{path}: a profile file needs a header with columns t,ug")
         t, u = np.empty(len(rows)), np.empty(len(rows))
@@ -140,6 +149,11 @@ class FromFile(Profile):
                                  f"t={r['t']!r}, ug={r['ug']!r}") from None
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(u))):
             raise ValueError(f"{path}: non-finite t or ug")
+        big = np.flatnonzero(np.abs(u) > cls.UG_LIMIT)
+        if big.size:
+            line, _ = rows[int(big[0])]
+            raise ValueError(f"{path}: line {line}: ug = {float(u[big[0]])!r} V is beyond +-{cls.UG_LIMIT:g} V "
+                             "(ug in volts, SI; mV or raw counts?)")
         if np.any(np.diff(t) <= 0):
             raise ValueError(f"{path}: t must increase strictly")
         return cls(path=str(path), t_data=t, u_data=u)

@@ -355,6 +355,7 @@ def test_file_profile_interpolates_and_holds_beyond_its_ends(tmp_path):
     ("t,ug\n0,1\n1,abc\n", r"u\.csv: line 3: .*'abc'"),
     ("t,ug\n0,1\n1,\n", r"u\.csv: line 3"),
     ("t,ug\n0,1\n1\n", r"u\.csv: line 3"),  # a short row: was a TypeError (float(None))
+    ("t,ug\n0,1\n1,2500\n", r"u\.csv: line 3: ug = 2500.0 V is beyond \+-1000 V"),  # mV: out-of-contract samples
 ])
 def test_file_profile_rejects_a_bad_file_naming_it(tmp_path, text, match):
     p = tmp_path / "u.csv"
@@ -363,9 +364,14 @@ def test_file_profile_rejects_a_bad_file_naming_it(tmp_path, text, match):
         parse_profile(f"file:path={p}")
 
 
-def test_file_profile_missing_file_and_missing_path(tmp_path):
-    with pytest.raises(FileNotFoundError, match="nope.csv"):
+def test_file_profile_missing_file_and_missing_path(tmp_path, capsys):
+    with pytest.raises(FileNotFoundError, match="profile file '.*nope.csv': no such file"):
         parse_profile(f"file:path={tmp_path / 'nope.csv'}")
+    with pytest.raises(ValueError, match="cannot be read as CSV text"):
+        parse_profile(f"file:path={tmp_path}")  # a directory
+    assert main(["sim", "--profile", f"file:path={tmp_path / 'nope.csv'}", "--duration", "1",
+                 "--to-csv", str(tmp_path / "o.csv")]) == 2
+    assert "profile file" in capsys.readouterr().err  # (was a bare "[Errno 2] ...")
     with pytest.raises(ValueError, match="needs path=FILE"):
         parse_profile("file")
 
@@ -397,3 +403,32 @@ def test_sim_profile_file_drives_the_command_voltage(tmp_path, capsys):
     assert main(["sim", "--profile", f"file:path={tmp_path / 'nope.csv'}", "--duration", "0.1",
                  "--to-csv", str(out)]) == 2
     assert "nope.csv" in capsys.readouterr().err
+
+
+def test_the_profile_file_limit_is_the_contract_s():
+    from hydromon.contract import SAMPLE_LIMITS
+
+    assert FromFile.UG_LIMIT == SAMPLE_LIMITS["ug"]  # plant_sim cannot import the contract (layers)
+
+
+@pytest.mark.parametrize("opt, name, other", [("--to-csv", "run.mcap", "--to-mcap"), ("--to-mcap", "run.CSV", "--to-csv")])
+def test_sim_refuses_a_file_name_that_says_the_other_format(tmp_path, capsys, opt, name, other):
+    # a review: --to-csv x.mcap wrote CSV text into x.mcap (evaluate and replay then refuse it)
+    assert main(["sim", "--duration", "1", opt, str(tmp_path / name)]) == 2
+    assert f"use {other}" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_json_into_a_closed_pipe_is_not_a_traceback(tmp_path):
+    """A review: `hydromon ... --json | head -c 100` ended in a BrokenPipeError traceback. Here the
+    reader has closed its end before the command writes (deterministic, unlike `| head`)."""
+    import subprocess
+    import sys
+
+    csv = tmp_path / "r.csv"
+    assert main(["sim", "--duration", "1", "--rig", "table4-g1", "--to-csv", str(csv)]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "evaluate", str(csv), "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(120) == 141 and "Traceback" not in err, err

@@ -109,10 +109,16 @@ def test_good_small_csv_parses(tmp_path):
     (GOOD + "0.03,2,0\n", r"line 5: 3 fields"),
     ("", r"empty file"),
     ("t,ug,x1,x3,x4,x5\n", r"no samples"),
+    (GOOD + "\n0.03,2,0,1e6,1e6,0\n", r"line 5: empty line"),  # a blank line inside the data
 ])
 def test_bad_csv_raises_a_clear_error(tmp_path, text, match):
     with pytest.raises(ValueError, match=match):
         load_recording(_write(tmp_path, text))
+
+
+def test_blank_lines_at_the_end_are_allowed(tmp_path):
+    # a review: an editor's extra newline at the end was refused as "line N: empty line"
+    assert len(load_recording(_write(tmp_path, GOOD + "\n\n  \n")).t) == len(load_recording(_write(tmp_path, GOOD)).t)
 
 
 def test_sampling_within_one_percent_is_accepted(tmp_path):

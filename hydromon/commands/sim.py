@@ -91,6 +91,11 @@ def check_args(args, spec) -> None:
     h = spec.config.h
     if round(args.duration / h) < 1:
         raise ValueError(f"--duration {args.duration!r} s is shorter than one sample ({h:g} s)")
+    # a name that says the other format: evaluate and replay would then refuse what was written
+    for opt, path, other, ext in (("--to-csv", args.to_csv, "--to-mcap", ".mcap"),
+                                  ("--to-mcap", args.to_mcap, "--to-csv", ".csv")):
+        if path and str(path).lower().endswith(ext):
+            raise ValueError(f"{opt} {path!r}: the name says {ext[1:].upper()}; use {other} for that, or another name")
     if args.to_csv and args.to_mcap and os.path.realpath(args.to_csv) == os.path.realpath(args.to_mcap):
         raise ValueError(f"--to-csv and --to-mcap name the same file {args.to_csv!r}")
     if args.to_csv:
