@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import logging
 import os
 import sys
 
@@ -51,5 +52,32 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+def entry() -> None:
+    """The ``hydromon`` console script (and ``python -m hydromon.cli``): :func:`main`, then out
+    without the interpreter's finalization.
+
+    Zenoh's runtime threads outlive a closed session; one that touches Python while the
+    interpreter finalizes is stopped mid-unwind and aborts the process (SIGABRT, "FATAL:
+    exception not rethrown": one ``hydromon demo`` in 14 under load, after its work was done and
+    reported). Every command has closed its files and sessions when it returns, so the output
+    is flushed and the process leaves with the command's status.
+    """
+    try:
+        code = main()
+    except SystemExit as exc:  # argparse: --help (0) or a usage error (2), already printed
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        if not isinstance(exc.code, (int, type(None))):
+            print(exc.code, file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except BrokenPipeError:  # the reader left before the last bytes: as main() does
+            code = code or 141
+        except (OSError, ValueError):
+            pass
+    logging.shutdown()
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -142,7 +142,13 @@ def render(ev: Evaluation, console=None) -> None:
         t.add_row(*row, PARAM_UNITS[k], grades.get(k, ""))
     console.print(t)
     graded = ev.ranges.params if ev.ranges is not None else {}
-    if "K_sv" in graded and "K_sv_omega_sv2" not in graded:
+    if not a.converged:
+        # the reason a person needs here is the record's length, not the valve's excitation
+        need = (ev.options or IdentOptions()).min_rows
+        console.print(f"[yellow]not converged: the chamber and valve equations need {need} rows each before a "
+                      f"grade (about {need / r.config.sample_rate:g} s of samples after the filters' warm-up); "
+                      f"this record has {len(r.samples)} samples: give a longer one[/yellow]")
+    elif "K_sv" in graded and "K_sv_omega_sv2" not in graded:
         w2, s = a.params["omega_sv2"], a.std_errors["omega_sv2"]
         rel = s / abs(w2) if math.isfinite(s) and math.isfinite(w2) and w2 else math.inf
         why = ("" if rel < 0.05 else  # the reason matters where it shows: an unexcited valve

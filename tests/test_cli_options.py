@@ -432,3 +432,26 @@ def test_json_into_a_closed_pipe_is_not_a_traceback(tmp_path):
     proc.stdout.close()
     err = proc.stderr.read().decode()
     assert proc.wait(120) == 141 and "Traceback" not in err, err
+
+
+def test_the_console_entry_keeps_status_and_output(tmp_path):
+    """``hydromon`` leaves through ``cli.entry`` (os._exit after flushing, no interpreter
+    finalization, where zenoh's threads could abort the process): its status and everything
+    printed come through as from ``main``."""
+    import subprocess
+    import sys
+
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "hydromon.cli", *args], capture_output=True, text=True,
+                              timeout=120)
+
+    ok = run("--help")
+    assert ok.returncode == 0 and "usage: hydromon" in ok.stdout
+    bad = run("sim", "--nope")
+    assert bad.returncode == 2 and "unrecognized arguments: --nope" in bad.stderr
+    err = run("evaluate", str(tmp_path / "missing.csv"))
+    assert err.returncode == 2 and "error:" in err.stderr
+    csv = tmp_path / "r.csv"
+    assert main(["sim", "--duration", "1", "--rig", "table4-g1", "--to-csv", str(csv)]) == 0
+    out = run("evaluate", str(csv), "--json")
+    assert out.returncode == 0 and orjson.loads(out.stdout)["status"]  # the whole document, flushed

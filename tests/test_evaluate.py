@@ -73,6 +73,11 @@ def test_short_recording_is_converging_with_null_level(g4_run, tmp_path, capsys)
     doc = json.loads(capsys.readouterr().out)
     assert doc["status"] == "converging" and doc["level"] is None and doc["grade"] == "unknown"
     assert doc["std_errors"]["m"] is None  # inf: not identified yet, null in JSON
+    # the table says why: the record's length (a review: it blamed an unexcited valve)
+    assert main(["evaluate", str(p)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "not converged: the chamber and valve equations need 300 rows each" in out
+    assert "this record has 200 samples" in out and "smooth command" not in out
 
 
 @pytest.mark.parametrize("group", [1, 2, 3, 5])

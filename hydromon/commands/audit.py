@@ -54,6 +54,7 @@ def load(path: str, rig: str | None = None, config=None):
     with it. Returns ``(config, samples, stretch)``: across gaps, the samples of the longest
     stretch without one, which ``stretch`` describes (None: no gap, every sample)."""
     from hydromon.recording import load_recording
+    from monitor.audit.residuals import MIN_SAMPLES
 
     p = Path(path)
     name = str(p)
@@ -65,6 +66,13 @@ def load(path: str, rig: str | None = None, config=None):
     csv = p.suffix.lower() == ".csv"
     stretch = _stretch(rec, csv)
     samples = rec.samples
+    if stretch is not None and stretch["samples"] < MIN_SAMPLES:
+        first = rec.restarts[0]
+        at = f"line {first + 2}" if csv else f"rig {rec.rig!r} sample {first}"
+        skipped = f"; {rec.rejected} invalid sample(s) skipped" if rec.rejected else ""
+        raise ValueError(f"{name} {at}: t = {float(rec.t[first])!r} s follows a gap ({stretch['gaps']} gap(s), "
+                         f"{rec.missing} sample(s) missing{skipped}); the longest stretch without one, "
+                         f"{stretch['where']}, has {stretch['samples']} samples and the audit needs {MIN_SAMPLES}")
     if stretch is not None:
         samples = rec.samples[stretch["first"]:stretch["last"] + 1]
         skipped = f", {rec.rejected} invalid sample(s) skipped" if rec.rejected else ""

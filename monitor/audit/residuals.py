@@ -65,6 +65,7 @@ FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction a
 SG_LIGHT = 11  # [samples] window of the light smoothing of nonlinear terms' ingredients
 SG_ORDER = 3
 MARGIN = 25  # [samples] rows dropped at both ends (filter edges and x1 re-alignment)
+MIN_SAMPLES = 10 * MARGIN  # the shortest record the audit takes
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
 
@@ -145,7 +146,7 @@ def signals(samples: np.ndarray, h: float) -> Signals:
     if s.ndim != 2 or s.shape[1] != 5:
         raise ValueError(f"samples must be (N, 5): ug, x1, x3, x4, x5; got shape {s.shape}")
     if len(s) < 10 * MARGIN:
-        raise ValueError(f"need at least {10 * MARGIN} samples, got {len(s)}")
+        raise ValueError(f"need at least {MIN_SAMPLES} samples, got {len(s)}")
     if not np.all(np.isfinite(s)):
         raise ValueError(f"non-finite value in sample {int(np.argwhere(~np.isfinite(s))[0, 0])}")
     if not (h > 0 and math.isfinite(h)):
