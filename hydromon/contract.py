@@ -15,13 +15,16 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from plant_sim.params import RigConfig
 
 __all__ = [
-    "Sample", "Health", "RigConfig", "GRADES", "STATUSES", "PARAM_NAMES", "SEQ_MAX", "SAMPLE_LIMITS",
+    "Sample", "Health", "RigConfig", "GRADES", "STATUSES", "PARAM_NAMES", "SEQ_MAX", "RESTART_RUN", "SAMPLE_LIMITS",
     "RIG_ID_RE", "valid_rig_id", "sample_key", "health_key", "config_key", "liveliness_key",
     "parse_rig_key", "DEFAULT_NAMESPACE",
 ]
 
 DEFAULT_NAMESPACE = "hydro"
 SEQ_MAX = 2**63 - 1  # seq is a signed 64-bit count (the monitor keeps it in int64 arrays)
+# Samples in a row below a rig's last seq, each above the one before, that the monitor takes as
+# the rig's restart when it never saw the new run's seq 0 (lost while a peer reconnected)
+RESTART_RUN = 50
 # Magnitude limits of a sample's measured values (SI), far beyond any servo cylinder (strokes
 # under 10 m, pressures under 10 kbar, spool strokes of millimetres, command voltages of
 # volts) but below what overflows the estimators: one reading of 1e300 Pa used to leave a rig's

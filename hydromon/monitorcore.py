@@ -21,7 +21,14 @@ are skipped and counted as ``ignored``, not rejected.
 Sequence numbers, per rig: a seq at or below the last one taken is dropped (counted as
 ``duplicate`` when equal, ``out_of_order`` when lower), except ``seq == 0`` after a
 higher seq, which is a restart of the rig (or a looped replay): the rig's estimates are
-reset (``restarts``). A seq above ``last + 1`` is a gap (``gaps``, ``missing`` samples):
+reset (``restarts``). A rig that restarted while its first samples were lost (a peer that
+reconnects after the restart, a router that comes back later) never shows seq 0: once
+``RESTART_RUN`` samples in a row have come below the last seq taken, each above the one before,
+that run is taken as the restart too (its first ``RESTART_RUN - 1`` samples are dropped and
+counted ``out_of_order``). Before, every sample of the new run was dropped until its seq passed
+the old run's last, and the old run's estimates then carried on into the new one. A lone
+sample that goes back (a second publisher under the same rig id) never makes such a run; the
+first one of a rig is warned of (``on_warning``). A seq above ``last + 1`` is a gap (``gaps``, ``missing`` samples):
 the rig's filters restart (``Fleet.reset_signals``; estimates carry on).
 
 Health status, in order of precedence: ``bad-input`` if a message on this rig's sample
@@ -30,7 +37,8 @@ impossible (``monitor.plausibility``: samples in wrong units, of the wrong sign 
 wrong rig config; the grade is then ``unknown``), or if its x1 has gone beyond a chamber's end
 since its estimates (re)started (``X1_CLAMPED_WARNING``; the grade stays); ``stale`` while fewer than
 ``stale_samples`` (default ``eval_every``) samples have followed the last gap, so the
-first health after a gap is always stale; ``converging`` while the estimator has not
+first health after a gap is always stale, and in the latest health re-sent by :meth:`MonitorCore.stale`
+for a rig that went silent (the node decides when: ``hydromon.monitornode.SilenceWatch``); ``converging`` while the estimator has not
 converged or cannot place the grade (level -1); else ``ok``.
 
 Health payloads carry finite numbers only (JSON has no NaN/inf): a parameter whose
@@ -47,13 +55,14 @@ from dataclasses import dataclass, field
 from operator import attrgetter, itemgetter
 
 import numpy as np
+import orjson
 
-from hydromon.contract import DEFAULT_NAMESPACE, RigConfig, _check_ns, health_key, parse_rig_key, valid_rig_id
+from hydromon.contract import DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, _check_ns, health_key, parse_rig_key, valid_rig_id
 from hydromon.edge import REJECT_REASONS, VALUE_LIMITS, Rejected, decode_json, parse_config, parse_sample, sim_samples
 from hydromon.health_json import health_payloads
 from monitor.pipeline import Fleet
 
-__all__ = ["MonitorCore", "MonitorCounters", "X1_CLAMPED_WARNING"]
+__all__ = ["MonitorCore", "MonitorCounters", "X1_CLAMPED_WARNING", "RESTART_RUN"]
 
 
 X1_CLAMPED_WARNING = ("x1 went beyond a chamber's end: the rig constants (A1, A2, V10, V20) or x1's zero, "
@@ -75,6 +84,7 @@ class MonitorCounters:
     restarts: int = 0          # seq back to 0
     ignored: int = 0           # health messages (our own output kind)
     health: int = 0            # health messages produced
+    stale_resent: int = 0      # latest health re-sent stale for a silent rig (MonitorCore.stale; not in as_dict)
 
     @property
     def dropped_seq(self) -> int:
@@ -161,6 +171,9 @@ class MonitorCore:
         self._gap = np.full(16, -1, dtype=np.int64)    # samples after the last gap; -1 = none pending
         self._bad = np.zeros(16, dtype=np.bool_)       # a sample-key message rejected since the last health
         self._clamp_warned = np.zeros(16, dtype=np.bool_)  # warned of its x1 beyond a chamber's end
+        self._back_n = np.zeros(16, dtype=np.int64)    # samples in a row below the last seq (a restart?)
+        self._back_seq = np.full(16, -1, dtype=np.int64)  # the last of them
+        self._back_warned = np.zeros(16, dtype=np.bool_)  # warned of a seq going back
         self._clear()
 
     # -- batch of accepted samples --------------------------------------------------------
@@ -205,6 +218,8 @@ class MonitorCore:
     def _restarted(self, r: int) -> None:
         """Row r's estimates restarted (config change, seq restart): warn of it afresh."""
         self._clamp_warned[r] = False
+        self._back_n[r] = 0
+        self._back_warned[r] = False
 
     def _health(self, ev, t: np.ndarray, out: list) -> None:
         """Health payloads of a batch's evaluations (``hydromon.health_json``)."""
@@ -228,6 +243,29 @@ class MonitorCore:
             out.append((msg[i], keys[r], payload))
         self.counters.health += len(ev)
 
+    def last_seqs(self) -> np.ndarray:
+        """The last seq taken of each rig, by row (-1: none yet); a copy."""
+        return self._last[:len(self.fleet.ids)].copy()
+
+    def stale(self, rig_ids: Iterable[str]) -> list[tuple[str, bytes]]:
+        """The latest health of each of these rigs (silent ones: no sample for a while), re-sent
+        with status ``stale`` (its grade and numbers are those of its last samples); a rig with no
+        health yet, or whose latest is stale already, gets none. ``latest`` says stale from then
+        on, until the rig's next health."""
+        out = []
+        for rig_id in rig_ids:
+            payload = self.latest.get(rig_id)
+            if payload is None:
+                continue
+            h = orjson.loads(payload)
+            if h["status"] == "stale":
+                continue
+            h["status"] = "stale"
+            payload = self.latest[rig_id] = orjson.dumps(h)
+            out.append((self._health_keys[self.rigs[rig_id].row], payload))
+        self.counters.stale_resent += len(out)
+        return out
+
     # -- input ----------------------------------------------------------------------------
     def _reject(self, reason: str, key: str, detail: str, rig: _Rig | None = None) -> None:
         self.counters.rejected[reason] += 1
@@ -248,6 +286,9 @@ class MonitorCore:
                 self._gap = np.concatenate([self._gap, np.full(grow, -1, dtype=np.int64)])
                 self._bad = np.concatenate([self._bad, np.zeros(grow, dtype=np.bool_)])
                 self._clamp_warned = np.concatenate([self._clamp_warned, np.zeros(grow, dtype=np.bool_)])
+                self._back_n = np.concatenate([self._back_n, np.zeros(grow, dtype=np.int64)])
+                self._back_seq = np.concatenate([self._back_seq, np.full(grow, -1, dtype=np.int64)])
+                self._back_warned = np.concatenate([self._back_warned, np.zeros(grow, dtype=np.bool_)])
             rig = self.rigs[rig_id] = _Rig(row, config)
             self._health_keys.append(health_key(rig_id, self.namespace))
         return rig
@@ -294,7 +335,15 @@ class MonitorCore:
         """Sequence checks of a valid sample of the rig in row ``r``, then into the batch."""
         seq, last, gap = vals[0], int(self._last[r]), int(self._gap[r])
         if last >= 0 and seq <= last:
-            if seq == 0 and last > 0:  # the rig restarted (or a replay looped): start afresh
+            if seq < last and seq != 0:  # going back: a run of these is a restart whose seq 0 we missed
+                run = int(self._back_n[r]) + 1 if 0 < self._back_n[r] and self._back_seq[r] < seq else 1
+                self._back_n[r], self._back_seq[r] = run, seq
+            if seq == 0 and last > 0 or seq != last and self._back_n[r] >= RESTART_RUN:
+                # the rig restarted (or a replay looped): start afresh
+                if seq != 0 and self.on_warning is not None:
+                    self.on_warning(self.fleet.ids[r], f"seq went back from {last} and ran on for {RESTART_RUN} "
+                                                       f"samples (now {seq}): taken as a restart of the rig "
+                                                       "whose first samples were lost")
                 self._flush(out)
                 self.fleet.reset(r)
                 self._restarted(r)
@@ -305,6 +354,11 @@ class MonitorCore:
                 return
             else:
                 self.counters.out_of_order += 1
+                if not self._back_warned[r] and self.on_warning is not None:
+                    self._back_warned[r] = True
+                    self.on_warning(self.fleet.ids[r], f"seq {seq} after {last}: dropped (out of order; two "
+                                                       "publishers under one rig id? further ones are counted, "
+                                                       "not logged)")
                 return
         elif last >= 0 and seq > last + 1:
             self._flush(out)  # the filters restart between the rig's old and new samples
@@ -315,6 +369,7 @@ class MonitorCore:
         elif gap >= 0:
             gap += 1
         self._last[r] = seq
+        self._back_n[r] = 0
         n = self._n[r] = self._n[r] + 1
         self.counters.accepted += 1
         status = None
@@ -392,7 +447,7 @@ class MonitorCore:
         prev[first] = self._last[r_s[first]]
         irregular = (s_s != prev + 1) | (prev < 0)
         slow[r_s[irregular]] = True
-        slow |= (self._gap >= 0) | self._bad
+        slow |= (self._gap >= 0) | self._bad | (self._back_n > 0)
         keep = ~slow[rows]
         index = np.arange(len(messages)) if pick is None else np.asarray(pick)  # message of each candidate
         if keep.all():

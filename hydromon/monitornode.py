@@ -26,6 +26,7 @@ import threading
 import time
 from collections.abc import Callable
 
+import numpy as np
 import zenoh
 
 from hydromon.bus import JSON
@@ -35,8 +36,8 @@ from hydromon.monitorcore import MonitorCore, MonitorCounters  # noqa: F401  (re
 from hydromon.quietgc import QuietGC
 from monitor.pipeline import warm_up
 
-__all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "log_rig_warning", "run_monitor", "rig_pattern",
-           "REJECT_REASONS"]
+__all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "SilenceWatch", "log_rig_warning", "run_monitor",
+           "rig_pattern", "REJECT_REASONS"]
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +69,41 @@ class RateLimitedLog:
         self.logger.warning("rejected %s on %s: %s%s", reason, key[:200], detail[:200], more)
 
 
+class SilenceWatch:
+    """Rigs that have sent no sample for ``after`` [s]: ``check(core, now)`` returns their latest
+    health re-sent as ``stale`` (``MonitorCore.stale``), once per silence.
+
+    Health is computed from samples, so a rig that stops publishing (its PC off, its cable out)
+    would otherwise keep its last ``ok`` for good: on the health query and on every dashboard
+    that shows the latest message. The check compares each rig's last seq with the one it had at
+    the previous check (one array comparison for the whole fleet); ``now`` is the node's clock.
+    """
+
+    def __init__(self, after: float):
+        if not after > 0:
+            raise ValueError(f"stale after {after!r} s must be > 0")
+        self.after = float(after)
+        self._seqs = np.empty(0, dtype=np.int64)
+        self._since = np.empty(0)
+        self._told = np.empty(0, dtype=np.bool_)
+
+    def check(self, core: MonitorCore, now: float) -> list[tuple[str, bytes]]:
+        seqs = core.last_seqs()
+        new = len(seqs) - len(self._seqs)
+        if new > 0:  # rigs seen since the last check: silent from now at the earliest
+            self._seqs = np.concatenate([self._seqs, np.full(new, -2, dtype=np.int64)])
+            self._since = np.concatenate([self._since, np.full(new, now)])
+            self._told = np.concatenate([self._told, np.zeros(new, dtype=np.bool_)])
+        moved = seqs != self._seqs
+        self._since[moved], self._told[moved], self._seqs = now, False, seqs
+        due = ~self._told & (now - self._since >= self.after)
+        if not due.any():
+            return []
+        self._told |= due
+        ids = core.fleet.ids
+        return core.stale([ids[r] for r in np.flatnonzero(due).tolist()])
+
+
 _RIG_PATTERN_RE = re.compile(r"\*|\$\*|[A-Za-z0-9_$*-]{1,64}")
 
 
@@ -89,7 +125,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 core: MonitorCore | None = None, capacity: int = 65536, max_batch: int = 20000,
                 poll_s: float = 0.005, on_health: Callable[[str, bytes], None] | None = None,
                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
-                config_query_s: float = 5.0, clock=time.monotonic, rigs: str = "*") -> MonitorCore:
+                config_query_s: float = 5.0, clock=time.monotonic, rigs: str = "*",
+                stale_after_s: float | None = 2.0) -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
 
     Parameters
@@ -117,6 +154,10 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         At start, the monitor queries ``<ns>/rig/*/config`` for the configs of rigs that
         are already running; replies count as config messages for this long [s].
 
+    stale_after_s : float or None
+        A rig that has sent no sample for this long [s] has its latest health re-sent with
+        status ``stale`` (:class:`SilenceWatch`; None: never).
+
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
     _check_ns(namespace)
@@ -126,6 +167,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     warm_up()  # compile before subscribing: the first samples must not queue behind the compiler
     stop = stop_event if stop_event is not None else threading.Event()
     deadline = None if duration is None else clock() + duration
+    watch = None if stale_after_s is None else SilenceWatch(stale_after_s)
+    watch_every = None if stale_after_s is None else min(0.25, stale_after_s / 4)
 
     def answer(query: zenoh.Query) -> None:
         qk = query.key_expr
@@ -181,10 +224,15 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
 
     quiet = QuietGC()
     quiet.__enter__()  # left in the finally below
+    next_watch = clock()
     try:
         while True:
             started = time.perf_counter()
             n = drain()
+            if watch is not None and clock() >= next_watch:
+                now = clock()
+                publish(watch.check(core, now))
+                next_watch = now + watch_every
             if stop.is_set() or (deadline is not None and clock() >= deadline):
                 break
             if n < max_batch:

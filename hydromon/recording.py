@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hydromon.contract import SAMPLE_LIMITS
+from hydromon.contract import RESTART_RUN, SAMPLE_LIMITS
 from plant_sim.params import RigConfig
 
 __all__ = ["CSV_COLUMNS", "RATE_TOL", "Recording", "read_csv", "load_recording", "check_increasing",
@@ -198,7 +198,7 @@ def _seq_taken(seq: np.ndarray, t: np.ndarray, name: str, first: int = 0) -> tup
     back = _restarts(seq)
     if back:
         i = back[0]
-        raise ValueError(f"{name}: seq goes from {int(before[i])} back to 0 at sample {first + i} "
+        raise ValueError(f"{name}: seq goes from {int(before[i])} back to {int(seq[i])} at sample {first + i} "
                          f"(t = {float(t[i])!r} s; the rig restarted): evaluate one run at a time, or replay "
                          "the recording (hydromon replay --direct), which handles restarts")
     return seq > before, int(np.sum(seq == before)), int(np.sum(seq < before))
@@ -206,14 +206,18 @@ def _seq_taken(seq: np.ndarray, t: np.ndarray, name: str, first: int = 0) -> tup
 
 def _restarts(seq: np.ndarray) -> list[int]:
     """Indices where the live monitor sees the rig restart: seq 0 after a higher seq taken (a
-    second seq 0 right after a restart is a duplicate, not another restart)."""
-    out, last = [], -1
+    second seq 0 right after a restart is a duplicate, not another restart), or the
+    ``RESTART_RUN``-th of a run of seqs below the last one taken, each above the one before (a
+    restart whose first samples were lost; hydromon/monitorcore.py)."""
+    out, last, run, prev = [], -1, 0, -1
     for i, s in enumerate(seq.tolist()):
-        if s == 0 and last > 0:
+        if 0 < s < last:
+            run, prev = (run + 1 if run and prev < s else 1), s
+        if s == 0 and last > 0 or 0 < s < last and run >= RESTART_RUN:
             out.append(i)
-            last = 0
+            last, run = s, 0
         elif s > last:
-            last = s
+            last, run = s, 0
     return out
 
 

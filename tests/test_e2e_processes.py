@@ -138,7 +138,9 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
     try:
         procs.start("router", "router", "--listen", ep)
         wait_for(lambda: "listening on" in procs.log("router"), 60, "the router", alive=procs.check_alive)
-        procs.start("monitor", "monitor", "--node", "e2e", *bus)
+        # the recording is compared with direct replay, which has no clock: no re-sent stale health
+        # if this machine is slow to stop the monitor after the sim (--stale-after)
+        procs.start("monitor", "monitor", "--node", "e2e", "--stale-after", "600", *bus)
         procs.start("record", "record", "--out", str(out), *bus)
         with open_session("client", connect=[ep]) as s:
             sub = s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(100_000))

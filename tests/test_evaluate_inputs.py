@@ -241,3 +241,19 @@ def test_a_config_at_another_sample_rate_is_ignored_as_live_rejects_it(run, tmp_
     core, live = _live(msgs)
     assert core.counters.config_changes == 0 and rec.config_changes == 0
     assert evaluate(rec).assessment.params == live
+
+
+def test_a_restart_whose_seq_0_was_lost_is_found_as_live_finds_it(run, tmp_path):
+    # the live monitor takes a run of seqs below the last one as a restart whose first samples were
+    # lost (monitorcore); evaluate refuses that restart as it refuses a seq 0, instead of grading
+    # the old run's estimates on into the new one
+    from hydromon.contract import RESTART_RUN
+
+    n = len(run.t)
+    seqs = list(range(300)) + list(range(20, 20 + n - 300))
+    msgs = _messages(run, seqs=seqs)
+    core, _ = _live(msgs)
+    assert core.counters.restarts == 1
+    with pytest.raises(ValueError, match=rf"seq goes from 299 back to {20 + RESTART_RUN - 1} at sample "
+                                         rf"{300 + RESTART_RUN - 1} .*replay --direct"):
+        load_recording(_mcap(tmp_path / "lost0.mcap", msgs))

@@ -218,6 +218,71 @@ def test_seq_back_to_zero_is_a_restart_and_gives_the_clean_verdicts_again(clean_
         assert got[rig][len(health_seqs(rig, 300)):] == want[rig]  # after the verdicts before the restart
 
 
+def test_a_restart_whose_seq_0_was_lost_is_a_restart_not_a_run_of_drops(clean_run):
+    # fault injection: a sim killed and restarted as a peer; the monitor reconnected after the
+    # new run's first samples, so it never saw seq 0. Every sample was dropped as out of order
+    # until the new seq passed the old run's last (no health for that long, nothing logged), and
+    # then the old run's estimates carried on into the new run
+    _, clean = clean_run
+    warnings = []
+    first = CLEAN[:5 + 5 * 300]  # configs + 3 s
+    lost = 20                    # the new run's first 20 samples never arrive
+    core, health = run_core(first + CLEAN[5 + 5 * lost:], chunk=250,
+                            on_warning=lambda rig, msg: warnings.append((rig, msg)))
+    c = core.counters
+    assert c.restarts == 5
+    from hydromon.contract import RESTART_RUN
+
+    assert c.out_of_order == 5 * (RESTART_RUN - 1) and c.gaps == 0
+    assert sorted(rig for rig, m in warnings if "taken as a restart" in m) == sorted(SPEC.ids)
+    got, want = by_rig(health), by_rig(clean)
+    back = lost + RESTART_RUN - 1  # the sample the new run restarts at
+    for rig in SPEC.ids:
+        hs = [orjson.loads(p) for p in got[rig]]
+        after = hs[len(health_seqs(rig, 300)):]
+        assert after[0]["seq"] < back + 10 and after[0]["status"] == "converging"  # graded again at once
+        assert [h["seq"] for h in after] == sorted(h["seq"] for h in after) and after[-1]["seq"] >= 590
+        assert after[-1]["status"] == "ok" and after[-1]["grade"] == orjson.loads(want[rig][-1])["grade"]
+
+
+def test_a_second_publisher_under_one_rig_id_is_warned_of_and_restarts_nothing(clean_run):
+    # two sims publishing the same rig ids: the second one's samples (below the first one's
+    # seq, interleaved with them) are dropped and counted, once logged per rig; they make no run
+    _, clean = clean_run
+    warnings = []
+    samples = CLEAN[5:]
+    msgs = CLEAN[:5 + 5 * 300]
+    for i in range(5 * 300, len(samples), 5):
+        msgs += samples[i:i + 5] + samples[i - 5 * 299:i - 5 * 298]  # the other one at seq 1, 2, ...
+    core, health = run_core(msgs, chunk=250, on_warning=lambda rig, msg: warnings.append((rig, msg)))
+    assert core.counters.restarts == 0 and core.counters.out_of_order == 5 * 300
+    assert sorted(rig for rig, _ in warnings) == sorted(SPEC.ids)
+    assert all("two publishers" in msg for _, msg in warnings)
+    assert by_rig(health) == by_rig(clean)
+
+
+def test_a_rig_that_goes_silent_has_its_latest_health_re_sent_stale_once():
+    # fault injection: a sim killed mid-run. Health comes from samples, so its rigs kept their
+    # last `ok` for good, on the health query too (the dashboard of a dead rig said ok)
+    from hydromon.monitornode import SilenceWatch
+
+    core, watch = MonitorCore(NS), SilenceWatch(2.0)
+    core.process(CLEAN[:5 + 5 * 400])
+    assert watch.check(core, 0.0) == [] and watch.check(core, 1.9) == []
+    before = dict(core.latest)
+    stale = watch.check(core, 2.1)
+    assert sorted(k for k, _ in stale) == sorted(health_key(r) for r in SPEC.ids)
+    for key, payload in stale:  # the last verdict, grade and numbers, now marked stale
+        rig = key.split("/")[2]
+        assert orjson.loads(payload) == {**orjson.loads(before[rig]), "status": "stale"}
+        assert core.latest[rig] == payload  # what the health query answers
+    assert watch.check(core, 10.0) == []  # once per silence
+    core.process(CLEAN[5 + 5 * 400:5 + 5 * 420])  # the rigs speak again
+    assert watch.check(core, 10.1) == [] and watch.check(core, 11.0) == []
+    assert all(orjson.loads(p)["status"] == "ok" for p in core.latest.values())
+    assert len(watch.check(core, 12.2)) == 5  # and fall silent again
+
+
 def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
     rig = "table4-g1"
     changed = RigConfig(p_s=13e6)
@@ -506,6 +571,42 @@ def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
         rig = str(r.key_expr).split("/")[2]
         assert Health.model_validate_json(r.payload.to_bytes()) == got[rig][-1]
     assert [str(r.key_expr) for r in one] == [health_key("table4-g4")]
+
+
+@pytest.mark.network
+@pytest.mark.timeout(90)
+def test_a_rig_that_stops_publishing_goes_stale_on_the_bus_and_on_the_query():
+    spec = FleetSpec(rigs=SPEC.rigs[:1])
+    rig = spec.ids[0]
+    ep = free_tcp_endpoint()
+    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as sim_s, \
+            open_session("peer", connect=[ep]) as obs_s:
+        sub = obs_s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(10000))
+        stop = threading.Event()
+        mon = threading.Thread(target=lambda: run_monitor(mon_s, stop_event=stop, node_name="m3", stale_after_s=0.5),
+                               daemon=True)
+        mon.start()
+        try:
+            wait_for(lambda: any(r.ok is not None for r in sim_s.liveliness().get("hydro/monitor/m3", timeout=1.0)),
+                     60, "the monitor's liveliness token")
+            run_sim(sim_s, spec, rate=0, duration=1.0)  # then the rig falls silent
+            got = []
+
+            def drain():
+                while (m := sub.try_recv()) is not None:
+                    got.append(orjson.loads(m.payload.to_bytes()))
+                return bool(got) and got[-1]["status"] == "stale"
+
+            wait_for(drain, 30, "a stale health of the silent rig")
+            replies = [orjson.loads(r.ok.payload.to_bytes()) for r in obs_s.get(f"hydro/rig/{rig}/health", timeout=5.0)
+                       if r.ok is not None]
+        finally:
+            stop.set()
+            mon.join(30)
+        assert not mon.is_alive()
+    assert [h["status"] for h in got].count("stale") == 1 and got[-1]["seq"] == health_seqs(rig, 100)[-1]
+    assert got[-1] == {**got[-2], "status": "stale"}  # the last verdict, re-sent stale
+    assert replies == [got[-1]]
 
 
 @pytest.mark.network

@@ -23,6 +23,9 @@ def add_arguments(parser) -> None:
                              "(shard a plant over several monitors; default all)")
     parser.add_argument("--eval-every", type=int, default=10, metavar="N",
                         help="a health message every N samples of a rig (default 10)")
+    parser.add_argument("--stale-after", type=float, default=2.0, metavar="S",
+                        help="a rig that sends no sample for S seconds has its latest health re-sent with "
+                             "status stale (default 2)")
     add_ranges_argument(parser)
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads for the estimators when many samples arrive at once (rigs split "
@@ -39,6 +42,7 @@ def run(args) -> int:
     _checks.positive("--duration", args.duration)
     _checks.at_least("--eval-every", args.eval_every, 1)
     _checks.at_least("--threads", args.threads, 1)
+    _checks.positive("--stale-after", args.stale_after)
     liveliness_key(args.node, args.namespace)  # the node name and the namespace
     try:
         rig_pattern(args.rigs)
@@ -54,7 +58,7 @@ def run(args) -> int:
             print(f"hydromon monitor: node {args.node!r} on {args.namespace}/rig/{args.rigs}/sample",
                   file=sys.stderr, flush=True)
             run_monitor(session, namespace=args.namespace, node_name=args.node, stop_event=stop,
-                        duration=args.duration, core=core, rigs=args.rigs)
+                        duration=args.duration, core=core, rigs=args.rigs, stale_after_s=args.stale_after)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -62,7 +66,8 @@ def run(args) -> int:
     rejected = ", ".join(f"{k} {v}" for k, v in c.rejected.items() if v) or "none"
     print(f"hydromon monitor: {len(core.rigs)} rig(s), {c.accepted} samples, {c.health} health messages; "
           f"rejected: {rejected}; dropped seq {c.dropped_seq}, gaps {c.gaps} ({c.missing} samples missing), "
-          f"restarts {c.restarts}", file=sys.stderr)
+          f"restarts {c.restarts}" + (f"; silent rigs' health re-sent stale {c.stale_resent} time(s)"
+                                      if c.stale_resent else ""), file=sys.stderr)
     line = x1_clamped_line(core)
     if line:
         print(f"hydromon monitor: {line}", file=sys.stderr)
