@@ -17,6 +17,7 @@ from hydromon.mcap_io import _COMPRESSION, LEAF_MODELS, _time_ns, rig_topic
 __all__ = ["RecordingWriter"]
 
 log = logging.getLogger("hydromon.mcap_io")  # one logger for the recordings' messages
+_WARN_CONFIGS = 20  # invalid configs logged per file (one line each); the rest are counted
 
 
 class RecordingWriter:
@@ -123,8 +124,10 @@ class RecordingWriter:
             cfg = RigConfig.model_validate_json(payload)
         except ValidationError as exc:
             self.invalid_configs += 1
-            log.warning("config on %s is not a valid RigConfig; recorded, not stored as metadata: %s",
-                        key, exc.errors()[0].get("msg"))
+            if self.invalid_configs <= _WARN_CONFIGS:  # bounded: a flood of bad configs must not flood the log
+                more = "" if self.invalid_configs < _WARN_CONFIGS else " (further ones are counted, not logged)"
+                log.warning("config on %s is not a valid RigConfig; recorded, not stored as metadata: %s%s",
+                            key[:200], exc.errors()[0].get("msg"), more)
             return False
         self._writer.add_metadata(f"rig_config/{rig}",
                                   {k: json.dumps(v) for k, v in cfg.model_dump(mode="json").items()})

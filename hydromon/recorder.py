@@ -35,6 +35,7 @@ __all__ = ["record", "RecordResult", "publish_time_ns", "Rotation"]
 
 log = logging.getLogger(__name__)
 _BATCH = 1000  # messages drained between timer checks
+_WARN_KEYS = 20  # keys whose non-JSON payloads are logged (one line each); the rest are counted
 
 
 @dataclass
@@ -222,9 +223,14 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
             obj = loads(payload)
         except ValueError:
             result.not_json += 1
-            if key not in warned:
+            # bounded: a burst of distinct bogus keys must not flood the log (50,000 keys gave
+            # 50,000 lines) nor grow this set without end; the exit summary has the count
+            if key not in warned and len(warned) <= _WARN_KEYS:
                 warned.add(key)
-                log.warning("not recording non-JSON payloads on %s (first of them)", key)
+                if len(warned) <= _WARN_KEYS:
+                    log.warning("not recording non-JSON payloads on %s (first of them)", key[:200])
+                else:
+                    log.warning("not recording non-JSON payloads on more keys: counted, not logged")
             return
         rotation.write(key, payload, now, publish_time_ns(obj, now))
         result.messages += 1

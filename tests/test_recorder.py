@@ -177,6 +177,38 @@ def test_record_over_a_real_zenoh_session_in_a_thread(tmp_path):
     assert all(m[2] > 1_600_000_000 * NS for m in msgs)  # log time = wall-clock receive time
 
 
+@pytest.mark.network
+@pytest.mark.timeout(60)
+def test_a_burst_of_bogus_keys_and_configs_does_not_flood_the_recorders_log(tmp_path, caplog):
+    # fault injection: 50,000 distinct bogus rig ids with non-JSON payloads made 50,000 log
+    # lines (one per key, and a set of every key held); invalid configs, one line each
+    ep = free_tcp_endpoint()
+    n = 500
+    with open_session("peer", listen=[ep]) as rec_session, open_session("peer", connect=[ep]) as pub_session:
+        stop, result = threading.Event(), {}
+        worker = threading.Thread(target=lambda: result.update(r=record(rec_session, tmp_path / "b.mcap",
+                                                                        stop_event=stop)), daemon=True)
+        with caplog.at_level("WARNING"):
+            worker.start()
+            pub = pub_session.declare_publisher("hydro/rig/probe/sample", congestion_control=BLOCK)
+            wait_for(lambda: pub.matching_status.matching, 20, "the recorder's subscription")
+            for i in range(n):
+                pub_session.put(f"hydro/rig/bogus{i:05d}/sample", b"junk", congestion_control=BLOCK)
+                pub_session.put(f"hydro/rig/bogus{i:05d}/config", b'{"A1": -1}', congestion_control=BLOCK)
+            pub.put(sample_bytes(0, 0.0))
+            wait_for(lambda: caplog.text.count("not a valid RigConfig") >= 20 and "on more keys" in caplog.text
+                     and (tmp_path / "b.mcap").exists(), 20, "the recorder's warnings")
+            time.sleep(1.0)  # the rest of the burst arrives
+            stop.set()
+            worker.join(20)
+        assert not worker.is_alive()
+    res = result["r"]
+    assert res.not_json == n
+    lines = [r for r in caplog.records if r.levelname == "WARNING"]
+    assert len(lines) <= 2 * 21, len(lines)
+    assert any("counted, not logged" in r.getMessage() for r in lines if "RigConfig" in r.getMessage())
+
+
 def _live_count(path) -> int:
     """Messages readable from a snapshot of a file that is still being written."""
     data = path.read_bytes() if path.exists() else b""
