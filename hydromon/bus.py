@@ -67,8 +67,19 @@ def make_config(mode: str = "peer", connect: Iterable[str] = (), listen: Iterabl
 
 def open_session(mode: str = "peer", connect: Iterable[str] = (), listen: Iterable[str] = (),
                  multicast: bool = False) -> zenoh.Session:
-    """Open a zenoh session (see :func:`make_config`); close it with ``with`` or ``.close()``."""
-    return zenoh.open(make_config(mode, connect, listen, multicast))
+    """Open a zenoh session (see :func:`make_config`); close it with ``with`` or ``.close()``.
+
+    ConnectionError (one line: the mode, the endpoints and zenoh's reason) if zenoh cannot open
+    it: a client whose router is not up (zenoh does not wait for it), a port already in use.
+    """
+    connect, listen = _endpoints("connect", connect), _endpoints("listen", listen)
+    conf = make_config(mode, connect, listen, multicast)
+    try:
+        return zenoh.open(conf)
+    except zenoh.ZError as exc:
+        where = "".join(f", {name} {', '.join(eps)}" for name, eps in (("connect", connect), ("listen", listen)) if eps)
+        reason = str(exc).split("  at ")[0].strip()  # without the Rust source location
+        raise ConnectionError(f"cannot open the zenoh session ({mode}{where}): {reason}") from None
 
 
 def free_tcp_endpoint(host: str = "127.0.0.1") -> str:

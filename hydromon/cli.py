@@ -50,6 +50,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError) as exc:
         print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except ConnectionError as exc:  # the bus (hydromon.bus.open_session): not a usage error, not a crash
+        print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
+        return 1
 
 
 def entry() -> None:

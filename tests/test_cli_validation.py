@@ -314,3 +314,20 @@ def test_record_checks_its_options_before_the_bus(tmp_path, capsys, no_bus, extr
     assert main(["record", "--out", str(tmp_path / "r.mcap"), *extra]) == 2
     one_error_line(capsys, "record", needle)
     assert sorted(os.listdir(tmp_path)) == ["a-file"]  # nothing written
+
+
+@pytest.mark.network
+@pytest.mark.parametrize("command", [["monitor"], ["sim"], ["record", "--out", "{tmp}/r.mcap"]])
+def test_a_client_whose_router_is_not_up_is_one_error_line_and_status_1(tmp_path, capsys, command):
+    # fault injection: a node started in client mode before its router (a plant's boot order) died
+    # with a zenoh traceback, exit status 1
+    from hydromon.bus import free_tcp_endpoint
+
+    ep = free_tcp_endpoint()  # nobody listens there
+    args = [a.replace("{tmp}", str(tmp_path)) for a in command] + ["--mode", "client", "--connect", ep]
+    assert main(args) == 1
+    cap = capsys.readouterr()
+    err = cap.err.strip().splitlines()[-1]
+    assert "Traceback" not in cap.err and err.startswith(f"hydromon {command[0]}: error: cannot open the zenoh session")
+    assert ep in err and "Unable to connect" in err and " at /" not in err
+    assert not (tmp_path / "r.mcap").exists()
