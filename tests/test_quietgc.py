@@ -25,7 +25,7 @@ def _cycle():
 def test_off_inside_restored_after_and_cycles_collected_when_due():
     assert gc.isenabled()
     now = [0.0]
-    with QuietGC(young_s=0.1, full_s=1.0, clock=lambda: now[0]) as q:
+    with QuietGC(young_s=0.1, full_s=1.0, clock=lambda: now[0], first_full_s=1.0) as q:
         assert not gc.isenabled()
         ref = _cycle()
         q.idle()  # not due yet: the cycle is still there
@@ -37,6 +37,25 @@ def test_off_inside_restored_after_and_cycles_collected_when_due():
         q.idle()  # a full collection
         assert q.collections == 2
     assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_a_full_collection_freezes_its_survivors_so_the_next_looks_only_at_newer_objects():
+    now = [0.0]
+    with QuietGC(young_s=0.1, full_s=30.0, clock=lambda: now[0], first_full_s=2.0) as q:
+        frozen = gc.get_freeze_count()
+        keep = [_Node() for _ in range(1000)]  # loaded after entry, alive for good
+        now[0] = 1.0
+        q.idle()  # young only
+        assert gc.get_freeze_count() == frozen
+        now[0] = 2.0
+        q.idle()  # the first full collection, early: the survivors are frozen
+        assert gc.get_freeze_count() >= frozen + len(keep)
+        assert not any(o is keep[0] for o in gc.get_objects(2))
+        ref = _cycle()  # cycles made afterwards are still found
+        now[0] = 32.0
+        q.idle()
+        assert ref() is None and q.collections == 3
+    assert gc.get_freeze_count() == 0
 
 
 def test_nested_contexts_across_threads_restore_only_at_the_last_exit():
@@ -73,3 +92,5 @@ def test_bad_intervals_are_refused():
         QuietGC(young_s=0.0)
     with pytest.raises(ValueError):
         QuietGC(young_s=2.0, full_s=1.0)
+    with pytest.raises(ValueError):
+        QuietGC(full_s=10.0, first_full_s=20.0)
