@@ -35,7 +35,7 @@ from hydromon.contract import SAMPLE_LIMITS, SEQ_MAX, RigConfig, Sample
 __all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_config", "parse_sample", "sim_samples"]
 
 REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-field", "wrong-type",
-                  "unknown-field", "bad-value")
+                  "unknown-field", "bad-value", "too-many-rigs")
 _SAMPLE_FIELDS = ("seq", "t", "ug", "x1", "x3", "x4", "x5")
 _SAMPLE_FIELD_SET = frozenset(_SAMPLE_FIELDS)
 _NUM = (float, int)

@@ -130,6 +130,10 @@ class MonitorCore:
         rigs: all evaluating on one tick cost the monitor ~30 ms in a burst every 100 ms).
     stale_samples : int or None
         Samples after a gap during which health says ``stale`` (default eval_every).
+    max_rigs : int
+        Most rigs this core holds (about 5 kB each): a valid sample or config of a further rig
+        id is rejected (``too-many-rigs``), so bogus ids on a shared bus cannot grow the monitor
+        without bound (a review: 20,000 of them added about 100 MB). Shard a larger plant.
     on_reject : callable or None
         Called as ``on_reject(reason, key, detail)`` for every rejected message (logging).
     on_warning : callable or None
@@ -143,7 +147,7 @@ class MonitorCore:
 
     def __init__(self, namespace: str = DEFAULT_NAMESPACE, *, sample_rate: float = 100.0,
                  eval_every: int = 10, stale_samples: int | None = None, stagger: bool = True,
-                 on_reject: Callable[[str, str, str], None] | None = None,
+                 max_rigs: int = 10000, on_reject: Callable[[str, str, str], None] | None = None,
                  on_warning: Callable[[str, str], None] | None = None, **fleet_kw):
         self.namespace = _check_ns(namespace)
         self.eval_every = int(eval_every)
@@ -152,6 +156,9 @@ class MonitorCore:
         self.stale_samples = self.eval_every if stale_samples is None else int(stale_samples)
         if self.stale_samples < 0:
             raise ValueError(f"stale_samples {stale_samples!r} must be >= 0")
+        if isinstance(max_rigs, bool) or not isinstance(max_rigs, int) or max_rigs < 1:
+            raise ValueError(f"max_rigs {max_rigs!r} must be an integer >= 1")
+        self.max_rigs = max_rigs
         self.fleet = Fleet(sample_rate=sample_rate, eval_every=eval_every, stagger=stagger, **fleet_kw)
         self.on_reject = on_reject
         self.on_warning = on_warning
@@ -274,6 +281,10 @@ class MonitorCore:
         if self.on_reject is not None:
             self.on_reject(reason, key, detail)
 
+    def _full(self) -> str:
+        return (f"this monitor holds its limit of {self.max_rigs} rigs (--max-rigs); a new rig id is refused "
+                "(shard a larger plant with --rigs PATTERN)")
+
     def _rig(self, rig_id: str) -> _Rig:
         rig = self.rigs.get(rig_id)
         if rig is None:
@@ -302,6 +313,10 @@ class MonitorCore:
         except Rejected as exc:
             self._reject(exc.reason, key, exc.detail)
             return
+        if rig_id not in self.configs and rig_id not in self.rigs and \
+                max(len(self.configs), len(self.rigs)) >= self.max_rigs:
+            self._reject("too-many-rigs", key, self._full())
+            return
         self.counters.configs += 1
         self.configs[rig_id] = config
         rig = self.rigs.get(rig_id)
@@ -309,6 +324,11 @@ class MonitorCore:
             if rig is not None:
                 rig.config = config
             return
+        if self.on_warning is not None:  # a restart of the estimates: the operator should see why
+            old = (rig.config or RigConfig()).model_dump()
+            changed = [k for k, v in config.model_dump().items() if old.get(k) != v]
+            self.on_warning(rig_id, f"config changed ({', '.join(changed)}): its estimates restart with the "
+                                    "new constants (a grade again after about 3 s of samples)")
         self._flush(out)  # the samples before the change belong to the old constants
         self.fleet.set_config(rig.row, config)
         self._restarted(rig.row)
@@ -321,8 +341,11 @@ class MonitorCore:
             vals = parse_sample(decode_json(payload))
         except Rejected as exc:
             self._reject(exc.reason, key, exc.detail, self.rigs.get(rig_id))
-            if rig_id not in self.rigs:  # remember it for the rig's first health
+            if rig_id not in self.rigs and len(self._early_bad) < self.max_rigs:  # for the rig's first health
                 self._early_bad.add(rig_id)
+            return
+        if rig_id not in self.rigs and len(self.rigs) >= self.max_rigs:
+            self._reject("too-many-rigs", key, self._full())
             return
         rig = self._rig(rig_id)
         self._known[key] = rig

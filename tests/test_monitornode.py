@@ -290,8 +290,13 @@ def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
     core, health = run_core(msgs)
     assert core.counters.config_changes == 0 and health == run_core(CLEAN[:2005])[1]
     msgs = CLEAN[:1005] + [(f"hydro/rig/{rig}/config", orjson.dumps(changed.model_dump()))] + CLEAN[1005:2005]
-    core, health = run_core(msgs)
+    warnings = []
+    core, health = run_core(msgs, on_warning=lambda r, m: warnings.append((r, m)))
     assert core.counters.config_changes == 1 and core.configs[rig] == changed
+    # said once, naming what changed (a live review: the estimates restarted without a log line)
+    assert [w for w in warnings if "config changed" in w[1]] == [
+        (rig, "config changed (p_s): its estimates restart with the new constants (a grade again after about 3 s "
+              "of samples)")]
     seqs = [orjson.loads(p)["seq"] for k, p in health if k == health_key(rig)]
     # 200 samples before the change, then the count restarts at the change (sample 200)
     before = health_seqs(rig, 200)
@@ -789,8 +794,10 @@ def test_the_exit_summary_names_rigs_whose_x1_empties_a_chamber():
 def test_a_rig_whose_x1_empties_a_chamber_is_warned_of_once_while_running():
     from hydromon.monitorcore import X1_CLAMPED_WARNING
 
-    warnings = []
-    core = MonitorCore(NS, on_warning=lambda rig, msg: warnings.append((rig, msg)))
+    warnings, changes = [], []
+    # (config changes are warned of too: counted apart)
+    core = MonitorCore(NS, on_warning=lambda rig, msg: (changes if msg.startswith("config changed") else warnings)
+                       .append((rig, msg)))
     cfg = lambda v10: (f"{NS}/rig/bad/config", orjson.dumps(RigConfig(V10=v10).model_dump(mode="json")))  # noqa: E731
 
     def samples(k0, n):
@@ -809,6 +816,7 @@ def test_a_rig_whose_x1_empties_a_chamber_is_warned_of_once_while_running():
     assert warnings == [("bad", X1_CLAMPED_WARNING)] * 3
     core.process(samples(0, 10))                      # the rig restarted (seq 0): afresh
     assert warnings == [("bad", X1_CLAMPED_WARNING)] * 4
+    assert [r for r, _ in changes] == ["bad"] * 3  # the three changes after the first config
 
 
 def test_an_unknown_field_whose_value_reads_as_infinity_is_an_unknown_field():
@@ -824,3 +832,24 @@ def test_an_integer_beyond_any_double_is_rejected_not_raised():
     with pytest.raises(Rejected) as info:
         parse_sample({**ok, "t": 10 ** 400})  # was an OverflowError out of the model
     assert info.value.reason == "non-finite"
+
+
+def test_a_monitor_holds_at_most_max_rigs_and_says_so():
+    """A live review: 20,000 bogus but valid rig ids added about 100 MB to the monitor. Beyond
+    max_rigs a new id's samples and configs are rejected (too-many-rigs); known rigs carry on."""
+    rejected = []
+    core = MonitorCore(NS, max_rigs=2, on_reject=lambda r, k, d: rejected.append((r, k, d)))
+    cfg = orjson.dumps(RigConfig().model_dump(mode="json"))
+    msgs = []
+    for k in range(30):
+        for rig in ("a", "b", "c"):
+            msgs.append((f"{NS}/rig/{rig}/sample", sample_with(seq=k, t=k * 0.01)))
+    msgs.append((f"{NS}/rig/d/config", cfg))
+    health = core.process(msgs)
+    assert sorted(core.rigs) == ["a", "b"] and "d" not in core.configs
+    assert {key.split("/")[2] for key, _ in health} == {"a", "b"}
+    assert core.counters.rejected["too-many-rigs"] == 31
+    assert {k.split("/")[2] for _, k, _ in rejected} == {"c", "d"}
+    assert "its limit of 2 rigs (--max-rigs)" in rejected[0][2]
+    with pytest.raises(ValueError, match="max_rigs"):
+        MonitorCore(NS, max_rigs=0)

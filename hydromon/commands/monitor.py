@@ -23,6 +23,9 @@ def add_arguments(parser) -> None:
                              "(shard a plant over several monitors; default all)")
     parser.add_argument("--eval-every", type=int, default=10, metavar="N",
                         help="a health message every N samples of a rig (default 10)")
+    parser.add_argument("--max-rigs", type=int, default=10000, metavar="N",
+                        help="most rigs this monitor holds (about 5 kB each); samples and configs of further "
+                             "rig ids are rejected as too-many-rigs (default 10000)")
     parser.add_argument("--stale-after", type=float, default=2.0, metavar="S",
                         help="a rig that sends no sample for S seconds has its latest health re-sent with "
                              "status stale (default 2)")
@@ -42,6 +45,7 @@ def run(args) -> int:
     _checks.positive("--duration", args.duration)
     _checks.at_least("--eval-every", args.eval_every, 1)
     _checks.at_least("--threads", args.threads, 1)
+    _checks.at_least("--max-rigs", args.max_rigs, 1)
     _checks.positive("--stale-after", args.stale_after)
     liveliness_key(args.node, args.namespace)  # the node name and the namespace
     try:
@@ -50,7 +54,7 @@ def run(args) -> int:
         raise ValueError(f"--rigs: {exc}") from None
     ranges = ranges_from_args(args)  # a bad file fails here, before the bus
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
-                       on_warning=log_rig_warning, threads=args.threads, ranges=ranges)
+                       on_warning=log_rig_warning, threads=args.threads, ranges=ranges, max_rigs=args.max_rigs)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
