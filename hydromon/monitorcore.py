@@ -32,7 +32,8 @@ first one of a rig is warned of (``on_warning``). A seq above ``last + 1`` is a 
 the rig's filters restart (``Fleet.reset_signals``; estimates carry on).
 
 Health status, in order of precedence: ``bad-input`` if a message on this rig's sample
-key was rejected since its previous health message, or if the rig's estimates are physically
+or config key was rejected since its previous health message (a rejected config leaves the
+rig graded on the constants it had), or if the rig's estimates are physically
 impossible (``monitor.plausibility``: samples in wrong units, of the wrong sign or zero, or a
 wrong rig config; the grade is then ``unknown``), or if its x1 has gone beyond a chamber's end
 since its estimates (re)started (``X1_CLAMPED_WARNING``; the grade stays); ``stale`` while fewer than
@@ -311,7 +312,9 @@ class MonitorCore:
                 raise Rejected("bad-value", f"sample_rate {config.sample_rate} Hz; this monitor runs "
                                             f"at {self.fleet.sample_rate} Hz")
         except Rejected as exc:
-            self._reject(exc.reason, key, exc.detail)
+            # a rig being graded: its next health says bad-input (it is still graded on the
+            # constants it had; a review found a rejected config left it saying ok)
+            self._reject(exc.reason, key, exc.detail, self.rigs.get(rig_id))
             return
         if rig_id not in self.configs and rig_id not in self.rigs and \
                 max(len(self.configs), len(self.rigs)) >= self.max_rigs:

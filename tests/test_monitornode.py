@@ -853,3 +853,18 @@ def test_a_monitor_holds_at_most_max_rigs_and_says_so():
     assert "its limit of 2 rigs (--max-rigs)" in rejected[0][2]
     with pytest.raises(ValueError, match="max_rigs"):
         MonitorCore(NS, max_rigs=0)
+
+
+def test_a_rejected_config_of_a_graded_rig_makes_its_next_health_bad_input():
+    """A live review: a config at another sample rate was one rate-limited log line and the rig
+    went on saying ok. Its next health now says bad-input (still graded on the constants it had),
+    the one after it ok again."""
+    core, health = run_core(CLEAN[:5 + 5 * 400])
+    rig = "table4-g1"
+    assert orjson.loads(core.latest[rig])["status"] == "ok"
+    bad = orjson.dumps(RigConfig(sample_rate=200.0).model_dump(mode="json"))
+    out = core.process([(f"{NS}/rig/{rig}/config", bad)] + CLEAN[5 + 5 * 400:5 + 5 * 440])
+    statuses = [orjson.loads(p)["status"] for k, p in out if k == health_key(rig)]
+    assert statuses[0] == "bad-input" and set(statuses[1:]) == {"ok"}, statuses
+    assert orjson.loads([p for k, p in out if k == health_key(rig)][0])["grade"] != "unknown"
+    assert core.counters.rejected["bad-value"] == 1 and core.counters.config_changes == 0
