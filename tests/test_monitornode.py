@@ -122,7 +122,8 @@ def test_every_malformed_kind_is_counted_and_good_rigs_are_unaffected(clean_run)
     _, clean = clean_run
     victim = "table4-g5"
     expected = {r: 0 for r in REJECT_REASONS}
-    msgs, n_dup, n_ooo, bad_at = [], 0, 0, []
+    msgs, n_dup, n_ooo = [], 0, 0
+    bad_at: dict[str, list] = {}  # rig -> seqs after which a message on its keys was rejected
     last_payload: dict[str, list] = {}
     junk_i = 0
     for i, (key, payload) in enumerate(CLEAN):
@@ -143,7 +144,7 @@ def test_every_malformed_kind_is_counted_and_good_rigs_are_unaffected(clean_run)
             junk_i += 1
             msgs.append((key, bad))
             expected[reason] += 1
-            bad_at.append(orjson.loads(payload)["seq"])
+            bad_at.setdefault(rig, []).append(orjson.loads(payload)["seq"])
         elif i % 61 == 0:
             reason, bad_key = BAD_KEYS[i % len(BAD_KEYS)]
             msgs.append((bad_key, sample_bytes(3, 0.03, [0.0, 0.0, 1e6, 1e6, 0.0])))
@@ -152,6 +153,8 @@ def test_every_malformed_kind_is_counted_and_good_rigs_are_unaffected(clean_run)
             reason, bad = BAD_CONFIGS[i % len(BAD_CONFIGS)]
             msgs.append((f"hydro/rig/{rig}/config", bad))
             expected[reason] += 1
+            # a rejected config flags the rig's next health too (it stays on its constants)
+            bad_at.setdefault(rig, []).append(orjson.loads(payload)["seq"])
     assert junk_i >= len(BAD_SAMPLES)  # every kind was injected at least once
     # a rig that only ever sends junk gets no row and no health
     for reason, bad in BAD_SAMPLES:
@@ -165,19 +168,18 @@ def test_every_malformed_kind_is_counted_and_good_rigs_are_unaffected(clean_run)
     assert (c.duplicate, c.out_of_order, c.gaps, c.restarts, c.ignored) == (n_dup, n_ooo, 0, 0, 1)
     assert c.accepted == 3000 and "junk-rig" not in core.rigs and sorted(core.rigs) == sorted(SPEC.ids)
     got, want = by_rig(health), by_rig(clean)
+    assert victim in bad_at and len(bad_at) > 1  # junk samples on the victim, bad configs on others
     for rig in SPEC.ids:
-        if rig != victim:
-            assert got[rig] == want[rig]
-    # the victim: the same verdicts, flagged bad-input in exactly the windows with junk
-    windows = {window_end(victim, s + 1) for s in bad_at}  # junk after sample s: the next window
-    assert len(got[victim]) == len(want[victim])
-    for g, w in zip(got[victim], want[victim]):
-        g, w = orjson.loads(g), orjson.loads(w)
-        if g["seq"] in windows:
-            assert g["status"] == "bad-input"
-            w["status"] = "bad-input"
-        assert g == w
-    assert sum(orjson.loads(g)["status"] == "bad-input" for g in got[victim]) == len(windows)
+        # the same verdicts, flagged bad-input in exactly the windows after a rejected message
+        windows = {window_end(rig, s + 1) for s in bad_at.get(rig, [])}  # after sample s: the next window
+        assert len(got[rig]) == len(want[rig])
+        for g, w in zip(got[rig], want[rig]):
+            g, w = orjson.loads(g), orjson.loads(w)
+            if g["seq"] in windows:
+                assert g["status"] == "bad-input"
+                w["status"] = "bad-input"
+            assert g == w
+        assert sum(orjson.loads(g)["status"] == "bad-input" for g in got[rig]) == len(windows)
 
 
 def test_a_gap_restarts_the_filters_and_marks_health_stale(clean_run):
