@@ -37,6 +37,21 @@ def window_end(rig_id: str, s: int, eval_every: int = 10) -> int:
     return e
 
 
+def assert_clean_but_flagged(rig_id: str, got: list, clean: list, bad_after) -> None:
+    """A rig's health payloads ``got`` are the clean run's verdicts ``clean``, byte for byte except
+    status ``bad-input`` in exactly the windows after a rejected message (after sample s of
+    ``bad_after``: the next window)."""
+    windows = {window_end(rig_id, s + 1) for s in bad_after}
+    assert len(got) == len(clean)
+    for g, w in zip(got, clean):
+        g, w = orjson.loads(g), orjson.loads(w)
+        if g["seq"] in windows:
+            assert g["status"] == "bad-input"
+            w["status"] = "bad-input"
+        assert g == w
+    assert sum(orjson.loads(p)["status"] == "bad-input" for p in got) == len(windows)
+
+
 # -- malformed input ------------------------------------------------------------------------------
 
 GOOD = {"seq": 5, "t": 0.05, "ug": 0.1, "x1": 0.01, "x3": 5e6, "x4": 6e6, "x5": 1e-5}

@@ -34,7 +34,7 @@ from hydromon.fleetfile import FleetSpec, RigSpec
 from hydromon.monitornode import REJECT_REASONS, MonitorCore
 from hydromon.simnode import iter_blocks
 from plant_sim.degradation import TABLE4_PAPER_GRADES
-from helpers import BAD_SAMPLES, sample_with, health_seqs, wait_for, window_end  # noqa: F401
+from helpers import BAD_SAMPLES, assert_clean_but_flagged, sample_with, health_seqs, wait_for  # noqa: F401
 
 NS = "hydro"
 SECONDS = 6.0
@@ -217,15 +217,7 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
         if rig != VICTIM:
             assert got[rig] == clean[rig]  # every verdict, byte for byte
     # the victim: the clean verdicts, flagged bad-input in exactly the windows holding junk
-    windows = {window_end(VICTIM, s + 1) for s in bad_after}  # junk after sample s: the next window
-    assert len(got[VICTIM]) == len(clean[VICTIM])
-    for g, w in zip(got[VICTIM], clean[VICTIM]):
-        g, w = orjson.loads(g), orjson.loads(w)
-        if g["seq"] in windows:
-            assert g["status"] == "bad-input"
-            w["status"] = "bad-input"
-        assert g == w
-    assert sum(orjson.loads(p)["status"] == "bad-input" for p in got[VICTIM]) == len(windows)
+    assert_clean_but_flagged(VICTIM, got[VICTIM], clean[VICTIM], bad_after)
     # the final grades: the clean run's, which are the rigs' true grades
     for rig in SPEC.ids:
         final = orjson.loads(got[rig][-1])
