@@ -31,7 +31,7 @@ from hydromon.bus import loads
 from hydromon.contract import DEFAULT_NAMESPACE, RigConfig, _check_ns
 from hydromon.mcap_io import RecordingWriter, rig_topic
 
-__all__ = ["record", "RecordResult", "publish_time_ns", "Rotation"]
+__all__ = ["record", "RecordResult", "publish_time_ns", "Rotation", "names_a_directory"]
 
 log = logging.getLogger(__name__)
 _BATCH = 1000  # messages drained between timer checks
@@ -66,6 +66,13 @@ def _valid_config(payload: bytes) -> bool:
     return True
 
 
+def names_a_directory(out) -> bool:
+    """``out`` (a path) is a directory for time-stamped files: it is one, or ends with a ``/``;
+    anything else names the file (``.mcap`` added if missing), whose directory is created."""
+    out_s = os.fspath(out)
+    return out_s.endswith(("/", os.sep)) or os.path.isdir(out_s)
+
+
 class Rotation:
     """The open MCAP file and its successors.
 
@@ -95,7 +102,7 @@ class Rotation:
             if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v <= 0):
                 raise ValueError(f"{name}={v!r} must be a positive integer or None")
         out_s = os.fspath(out)
-        if out_s.endswith(("/", os.sep)) or os.path.isdir(out_s):
+        if names_a_directory(out_s):
             stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime(now_ns / 1e9))
             self._base = Path(out_s) / f"{namespace.replace('/', '_')}-{stamp}"
         else:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
 import threading
@@ -28,19 +27,14 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from hydromon.commands._checks import non_negative, positive, writable_dir
-    from hydromon.recorder import record
+    from hydromon.recorder import names_a_directory, record
 
     # before the bus is opened: a bad option is one error line, not a session that is torn down
     positive("--rotate-mb", args.rotate_mb, unit="MB")
     positive("--rotate-s", args.rotate_s)
     non_negative("--duration", args.duration, unit="s")
-    # as hydromon.recorder.Rotation reads --out: a directory (existing, or with a trailing /)
-    # gets time-stamped files; anything else names the file, whose directory is created
-    out = os.fspath(args.out)
-    if out.endswith(("/", os.sep)) or os.path.isdir(out):
-        writable_dir("--out", out)
-    else:
-        writable_dir("--out", Path(out).parent)
+    # --out as the recorder reads it: a directory for its files, or a file whose directory is created
+    writable_dir("--out", args.out if names_a_directory(args.out) else Path(args.out).parent)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
