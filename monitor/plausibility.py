@@ -29,7 +29,7 @@ from numba import njit
 
 from hydromon.contract import PARAM_NAMES
 
-__all__ = ["POSITIVE", "Z_IMPLAUSIBLE", "any_impossible", "impossible", "implausible_mask", "implausible_names"]
+__all__ = ["POSITIVE", "Z_IMPLAUSIBLE", "any_impossible", "impossible", "implausible_names"]
 
 POSITIVE = ("inv_beta_e", "CdW_sqrt_rho", "K_sv")
 Z_IMPLAUSIBLE = 4.0
@@ -50,11 +50,6 @@ def any_impossible(params, std_errors) -> bool:
         if impossible(params[i], std_errors[i]):
             return True
     return False
-
-
-def implausible_mask(params: np.ndarray, std_errors: np.ndarray) -> np.ndarray:
-    """(n,) bool: :func:`any_impossible` of each row of (n, len(PARAM_NAMES)) estimates and SEs."""
-    return np.array([any_impossible(p, s) for p, s in zip(params, std_errors)], dtype=bool)
 
 
 def implausible_names(params: Mapping[str, float], std_errors: Mapping[str, float]) -> tuple[str, ...]:
