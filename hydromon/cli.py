@@ -1,6 +1,7 @@
 """``hydromon``: one entry point; each subcommand is a module in hydromon/commands.
 
-A command module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``.
+A command module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``,
+and ``KERNELS`` if it runs the compiled numerical kernels (see :func:`_compile_notice`).
 Argument parsing lives here and in those modules only; the work they call is elsewhere.
 """
 
@@ -12,6 +13,7 @@ import pkgutil
 import logging
 import os
 import sys
+import threading
 
 from hydromon import commands
 
@@ -31,12 +33,35 @@ def build_parser() -> argparse.ArgumentParser:
     for mod in _command_modules():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        p.set_defaults(_run=mod.run, _kernels=getattr(mod, "KERNELS", False))
     return parser
+
+
+COMPILE_NOTICE_AFTER_S = 2.0
+"""A command that uses the numerical kernels and is still running this long after it started
+on a cold cache says why it is slow."""
+
+
+def _compile_notice(args) -> threading.Timer | None:
+    """Started for a command whose module sets ``KERNELS`` (True, or a function of its
+    arguments) when numba's cache is empty:
+    its first kernel calls compile for about a minute, with nothing else to show for it."""
+    from plant_sim._jitcache import is_cold
+
+    kernels = getattr(args, "_kernels", False)
+    if not (kernels(args) if callable(kernels) else kernels) or not is_cold():
+        return None
+    timer = threading.Timer(COMPILE_NOTICE_AFTER_S, lambda: print(
+        f"hydromon {args.command}: first run of this version on this machine: compiling the numerical "
+        "kernels (about a minute; cached for every later run)", file=sys.stderr, flush=True))
+    timer.daemon = True
+    timer.start()
+    return timer
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    notice = _compile_notice(args)
     try:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
@@ -53,6 +78,9 @@ def main(argv: list[str] | None = None) -> int:
     except ConnectionError as exc:  # the bus (hydromon.bus.open_session): not a usage error, not a crash
         print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    finally:
+        if notice is not None:
+            notice.cancel()
 
 
 def entry() -> None:

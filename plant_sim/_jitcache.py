@@ -49,6 +49,18 @@ def prune(base: Path, keep: Path, now: float, stale_days: float = STALE_DAYS) ->
     return removed
 
 
+def is_cold() -> bool:
+    """True when numba's cache directory holds no compiled kernel yet: the first run of this
+    version on this machine, which compiles every kernel it calls (about a minute)."""
+    cache = os.environ.get("NUMBA_CACHE_DIR")
+    if not cache:
+        return False  # numba caches beside the sources: we cannot tell cheaply
+    try:
+        return not any(Path(cache).rglob("*.nbi"))
+    except OSError:
+        return False
+
+
 def configure() -> None:
     if os.environ.get("NUMBA_CACHE_DIR"):
         return

@@ -12,6 +12,7 @@ from hydromon.commands._rigconfig import add_config_argument, config_from_args, 
 
 NAME = "audit"
 HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named model extension explains it"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli)
 
 
 def add_arguments(parser) -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 NAME = "bench"
 HELP = "measure the performance figures (core, batch, replay, naive baseline, memory, transport, live)"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli)
 
 DEFAULT_HISTORY = Path(__file__).resolve().parents[2] / "benchmarks" / "history.jsonl"
 

@@ -6,6 +6,7 @@ import sys
 
 NAME = "calibrate"
 HELP = "build health ranges from labelled runs (paper section 4.1) into a ranges file"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli)
 
 
 def add_arguments(parser) -> None:

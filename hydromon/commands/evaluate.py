@@ -12,6 +12,7 @@ from hydromon.commands._rigconfig import (
 
 NAME = "evaluate"
 HELP = "grade one recording (.mcap, or .csv with columns t,ug,x1,x3,x4,x5 in SI units)"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli)
 
 
 def add_arguments(parser) -> None:

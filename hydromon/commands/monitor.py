@@ -11,6 +11,7 @@ from hydromon.commands._ranges import add_ranges_argument, ranges_from_args
 
 NAME = "monitor"
 HELP = "grade every rig on <namespace>/rig/*/sample and publish <namespace>/rig/<id>/health"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli)
 
 
 def add_arguments(parser) -> None:

@@ -13,6 +13,11 @@ NAME = "replay"
 HELP = "publish an MCAP recording on the bus (paced), or grade it in-process with --direct"
 
 
+def KERNELS(args) -> bool:  # noqa: N802 (read by hydromon.cli like the other commands' flag)
+    """--direct grades in-process with the compiled kernels; publishing needs none."""
+    return bool(args.direct)
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE", help="an MCAP recording")
     parser.add_argument("--rate", type=float, default=1.0,

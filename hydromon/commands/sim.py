@@ -12,6 +12,7 @@ from hydromon.bus import add_bus_arguments, session_from_args
 
 NAME = "sim"
 HELP = "simulate rigs and publish their samples on the bus (or write a run to --to-csv/--to-mcap)"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli)
 
 
 def add_arguments(parser) -> None:
