@@ -50,7 +50,12 @@ def log_rig_warning(rig_id: str, message: str) -> None:
 
 class RateLimitedLog:
     """``__call__(reason, key, detail)`` logs the first rejection of each reason at once,
-    then at most one line per reason every ``interval`` [s] with how many were suppressed."""
+    then at most one line per reason every ``interval`` [s] with how many were suppressed.
+
+    ``flush()`` reports the suppressed counts that are due even when no further rejection
+    comes (the node calls it from its loop, and with ``final=True`` when it stops): without
+    it, the last burst of a reason would never be counted in the log.
+    """
 
     def __init__(self, logger: logging.Logger = log, interval: float = 5.0, clock=time.monotonic):
         self.logger, self.interval, self.clock = logger, float(interval), clock
@@ -67,6 +72,15 @@ class RateLimitedLog:
         self._last[reason] = now
         more = f" (+{n} more since the last report)" if n else ""
         self.logger.warning("rejected %s on %s: %s%s", reason, key[:200], detail[:200], more)
+
+    def flush(self, final: bool = False) -> None:
+        """Log each reason's suppressed count whose interval has passed (every one if ``final``)."""
+        now = self.clock()
+        for reason in list(self._suppressed):
+            if final or now - self._last[reason] >= self.interval:
+                n = self._suppressed.pop(reason)
+                self._last[reason] = now
+                self.logger.warning("rejected %s: %d more since the last report", reason, n)
 
 
 class SilenceWatch:
@@ -168,7 +182,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     stop = stop_event if stop_event is not None else threading.Event()
     deadline = None if duration is None else clock() + duration
     watch = None if stale_after_s is None else SilenceWatch(stale_after_s)
-    watch_every = None if stale_after_s is None else min(0.25, stale_after_s / 4)
+    watch_every = 0.25 if stale_after_s is None else min(0.25, stale_after_s / 4)
+    flush_log = getattr(core.on_reject, "flush", None)  # a RateLimitedLog's due counts
 
     def answer(query: zenoh.Query) -> None:
         qk = query.key_expr
@@ -229,9 +244,12 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         while True:
             started = time.perf_counter()
             n = drain()
-            if watch is not None and clock() >= next_watch:
+            if clock() >= next_watch:
                 now = clock()
-                publish(watch.check(core, now))
+                if watch is not None:
+                    publish(watch.check(core, now))
+                if flush_log is not None:
+                    flush_log()
                 next_watch = now + watch_every
             if stop.is_set() or (deadline is not None and clock() >= deadline):
                 break
@@ -250,6 +268,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         log.warning("monitor stopping: %s", exc)
     finally:
         quiet.__exit__()
+        if flush_log is not None:
+            flush_log(final=True)
         for obj in (sub_s, sub_c, queryable, token):
             try:
                 obj.undeclare()

@@ -735,6 +735,52 @@ def test_rejection_log_is_rate_limited_per_reason(caplog):
     assert lines[3].endswith("(+4 more since the last report)")
 
 
+def test_rejection_log_reports_a_last_burst_without_a_further_rejection(caplog):
+    now = [0.0]
+    rl = RateLimitedLog(interval=5.0, clock=lambda: now[0])
+    with caplog.at_level("WARNING", logger="hydromon.monitornode"):
+        for i in range(30):  # 3 s of rejections, then none
+            now[0] = i * 0.1
+            rl("not-json", "hydro/rig/a/sample", "bad")
+        rl("bad-key", "x/y", "nope")
+        now[0] = 4.0
+        rl.flush()  # not due yet
+        assert len(caplog.records) == 2
+        now[0] = 5.0
+        rl.flush()
+        assert caplog.records[-1].getMessage() == "rejected not-json: 29 more since the last report"
+        rl.flush(final=True)  # nothing more suppressed: nothing to say
+        assert len(caplog.records) == 3
+        rl("bad-key", "x/y", "nope")
+        rl.flush(final=True)  # the node stopping: reported whether due or not
+    assert caplog.records[-1].getMessage() == "rejected bad-key: 1 more since the last report"
+
+
+@pytest.mark.network
+@pytest.mark.timeout(60)
+def test_monitor_node_reports_its_suppressed_rejections_when_it_stops(caplog):
+    ep = free_tcp_endpoint()
+    log = RateLimitedLog(interval=3600.0)  # nothing falls due while it runs: only the stop reports
+    core = MonitorCore(on_reject=log)
+    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as pub_s, \
+            caplog.at_level("WARNING", logger="hydromon.monitornode"):
+        stop = threading.Event()
+        mon = threading.Thread(target=lambda: run_monitor(mon_s, stop_event=stop, node_name="m4", core=core),
+                               daemon=True)
+        mon.start()
+        try:
+            wait_for(lambda: any(r.ok is not None for r in pub_s.liveliness().get("hydro/monitor/*", timeout=1.0)),
+                     30, "the monitor's liveliness token")
+            for _ in range(5):
+                pub_s.put("hydro/rig/a/sample", b"not json")
+            wait_for(lambda: core.counters.rejected_total == 5, 30, "the 5 rejections")
+        finally:
+            stop.set()
+            mon.join(30)
+    lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("rejected not-json")]
+    assert len(lines) == 2 and lines[1] == "rejected not-json: 4 more since the last report"
+
+
 def _still_running(proc) -> None:
     if proc.poll() is not None:
         raise AssertionError(f"the monitor exited early ({proc.returncode}): {proc.stderr.read()[-2000:]}")
