@@ -172,6 +172,18 @@ def test_cli_csv_roundtrip(tmp_path, capsys):
     assert doc["cause"] == "load_offset"
 
 
+def test_cli_exits_1_on_a_record_that_does_not_obey_the_model(tmp_path, capsys):
+    from hydromon.cli import main
+
+    _, run = hidden_case(3, "load_offset")
+    path = tmp_path / "bar.csv"
+    from types import SimpleNamespace
+    write_csv(path, SimpleNamespace(t=run.t, samples=run.samples * np.array([1, 1, 1e-5, 1e-5, 1])))  # bar
+    assert main(["audit", str(path), "--json"]) == 1
+    doc = json.loads(capsys.readouterr().out)  # still reported in full
+    assert doc["cause"] == "none" and "does not obey the model" in doc["note"]
+
+
 def test_cli_mcap(tmp_path, capsys):
     from hydromon.cli import main
     from hydromon.fleetfile import spread_fleet

@@ -98,6 +98,7 @@ def run(args) -> int:
     from hydromon.audit_report import summary, to_json, write_report
     from hydromon.commands._checks import writable_dir
     from monitor.audit import AuditOptions, audit
+    from monitor.audit.audit import impossible_params
 
     try:  # the options first, then the file
         options = AuditOptions(train_fraction=args.train_fraction)
@@ -114,4 +115,7 @@ def run(args) -> int:
         print(json.dumps({**to_json(result), "stretch": stretch}))
     else:
         print(summary(result))
-    return 0
+    # a record that does not obey the model (wrong units, signs, zeros or rig constants) is
+    # audited and reported, but its cause "none" does not mean "the model is right": a script
+    # must not read it as a pass
+    return 1 if impossible_params(result.params_nominal) else 0
