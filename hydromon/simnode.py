@@ -275,10 +275,24 @@ def select_rig(spec: FleetSpec, rig: str | None) -> FleetSpec:
                      rigs=[r.model_copy(update={"seed": s}) for r, s in zip(spec.rigs, spec.seeds()) if r.id == rig])
 
 
-def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None) -> int:
+CSV_BYTES_PER_ROW = 90
+"""A lower bound of a CSV row's size (measured: 104 bytes; each float written exactly)."""
+MCAP_BYTES_PER_MESSAGE = 55
+"""A lower bound of a sample message's share of an MCAP file (measured: 63 bytes, compressed)."""
+
+
+def file_bytes(kind: str, duration: float, h: float, n_rigs: int = 1) -> float:
+    """What ``write_csv`` (``kind`` "csv", one rig) or ``write_mcap`` ("mcap") will write for
+    ``duration`` [s] at step ``h`` [s], at least [bytes]: checked against the free disk first."""
+    per = {"csv": CSV_BYTES_PER_ROW, "mcap": MCAP_BYTES_PER_MESSAGE}[kind]
+    return float(_n_samples(duration, h)) * n_rigs * per
+
+
+def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None, on_block=None) -> int:
     """Write one rig's run of ``duration`` [s] as CSV ``t,ug,x1,x3,x4,x5`` (SI) to a text stream.
 
-    ``rig`` picks a rig of the fleet by id (needed if it has several). Returns the row count.
+    ``rig`` picks a rig of the fleet by id (needed if it has several). ``on_block(done, total)``
+    (samples) is called after each block. Returns the row count.
     """
     one = select_rig(spec, rig)
     n = _n_samples(duration, one.config.h)  # before the first byte
@@ -289,14 +303,18 @@ def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None) 
         for t, row in zip(blk.t.tolist(), blk.samples[0].tolist()):
             stream.write(",".join(map(repr, [t, *row])) + "\n")
             rows += 1
+        if on_block is not None:
+            on_block(rows, n)
     return rows
 
 
-def write_mcap(spec: FleetSpec, duration: float, stream, namespace: str = DEFAULT_NAMESPACE) -> int:
+def write_mcap(spec: FleetSpec, duration: float, stream, namespace: str = DEFAULT_NAMESPACE,
+               on_block=None) -> int:
     """Write the fleet's run of ``duration`` [s] to an MCAP stream as the recorder would have
     recorded it from the bus (configs first, then samples; log and publish time = t).
 
-    Returns the number of messages written.
+    ``on_block(done, total)`` (samples per rig) is called after each block. Returns the number
+    of messages written.
     """
     from hydromon.mcap_io import RecordingWriter  # the MCAP edge, imported only when used
 
@@ -306,10 +324,14 @@ def write_mcap(spec: FleetSpec, duration: float, stream, namespace: str = DEFAUL
     with RecordingWriter(stream) as writer:
         for i, key in enumerate(config_key(i, namespace) for i in spec.ids):
             writer.write(key, orjson.dumps(fleet.configs[i].model_dump(mode="json")), 0, 0)
+        done = 0
         for blk in iter_blocks(fleet, n, block=100):
             rows = blk.samples.tolist()
             for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
                 t_ns = int(round(t * 1e9))
                 for r, key in enumerate(skeys):
                     writer.write(key, _sample_payload(seq, t, rows[r][j]), t_ns, t_ns)
+            done += len(blk.t)
+            if on_block is not None:
+                on_block(done, n)
         return writer.message_count

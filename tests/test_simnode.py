@@ -368,6 +368,50 @@ def test_cli_sim_to_csv_and_errors(tmp_path, capsys):
     assert "rigs.0.severity: severity 3.0 must lie in [0, 1]" in capsys.readouterr().err
 
 
+def test_file_size_estimates_are_lower_bounds_of_what_is_written():
+    # the disk check refuses on these estimates: one above the truth would refuse a run that fits
+    spec = spread_fleet(3, seed=2).with_overrides(noise="realistic")
+    csv, mcap = io.StringIO(), io.BytesIO()
+    simnode.write_csv(spec, 2.0, csv, rig="rig-0000")
+    simnode.write_mcap(spec, 2.0, mcap)
+    assert len(csv.getvalue().encode()) >= simnode.file_bytes("csv", 2.0, spec.config.h)
+    assert len(mcap.getvalue()) >= simnode.file_bytes("mcap", 2.0, spec.config.h, 3)
+
+
+def test_cli_sim_refuses_a_file_larger_than_the_free_disk(tmp_path, capsys):
+    from hydromon.cli import main
+
+    for opt in ("--to-csv", "--to-mcap"):
+        out = tmp_path / ("run.csv" if opt == "--to-csv" else "run.mcap")
+        assert main(["sim", "--rigs", "1", "--duration", "1e9", opt, str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"{opt} {str(out)!r}: 1e+09 s of" in err and "GB free" in err, err
+        assert not out.exists()
+
+
+def test_file_writers_report_progress_on_long_runs():
+    from hydromon.commands.sim import Progress
+
+    now = [0.0]
+    out = io.StringIO()
+    progress = Progress("--to-csv x.csv", every=5.0, clock=lambda: now[0], stream=out)
+    calls = []
+    spec = spread_fleet(1, seed=2)
+
+    def on_block(done, total):
+        calls.append((done, total))
+        now[0] += 2.0  # each block takes 2 s of wall time
+        progress(done, total)
+
+    simnode.write_csv(spec, 50.0, io.StringIO(), on_block=on_block)
+    assert calls[-1] == (5000, 5000) and len(calls) == 5  # 1000-sample blocks
+    lines = out.getvalue().splitlines()
+    assert lines == ["hydromon sim: --to-csv x.csv: 60 % (3000 of 5000 samples), about 4 s to go"], lines
+    mcalls = []
+    simnode.write_mcap(spec, 0.25, io.BytesIO(), on_block=lambda d, t: mcalls.append((d, t)))
+    assert mcalls == [(25, 25)]
+
+
 @pytest.mark.network
 @pytest.mark.timeout(60)
 def test_cli_sim_and_router_stop_by_themselves():

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import signal
 import tempfile
 import threading
@@ -32,6 +33,21 @@ def at_least(option: str, value: int | None, low: int) -> None:
     """An integer option (None = not given) must be >= ``low``."""
     if value is not None and value < low:
         raise ValueError(f"{option} {value!r} must be >= {low}")
+
+
+def fits_on_disk(option: str, path: str | os.PathLike, nbytes: float, what: str) -> None:
+    """``nbytes`` (an estimate of what is to be written) fit in the free space of ``path``'s
+    file system; a refusal says both figures. Writing beside the target and renaming needs the
+    room once more only if an old file is being replaced, which is not counted."""
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    try:
+        free = shutil.disk_usage(parent if parent.exists() else ".").free
+    except OSError:
+        return  # cannot tell: the write itself will say
+    if nbytes > free:
+        raise ValueError(f"{option} {str(p)!r}: {what} is about {nbytes / 1e9:.3g} GB and the disk has "
+                         f"{free / 1e9:.3g} GB free")
 
 
 def writable_file(option: str, path: str | os.PathLike) -> None:

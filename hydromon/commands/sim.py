@@ -6,6 +6,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from contextlib import ExitStack
 
 from hydromon.bus import add_bus_arguments, session_from_args
@@ -73,6 +74,26 @@ def build_fleet(args):
                                effects=effects, sensor_delay_loop=args.sensor_delay_loop)
 
 
+class Progress:
+    """``on_block(done, total)`` for the file writers: a line on stderr every ``every`` [s] of
+    wall time once a run takes that long (a short run prints nothing)."""
+
+    def __init__(self, what: str, every: float = 5.0, clock=time.monotonic, stream=None):
+        self.what, self.every, self.clock = what, every, clock
+        self.stream = stream
+        self.start = clock()
+        self.next = self.start + every
+
+    def __call__(self, done: int, total: int) -> None:
+        now = self.clock()
+        if now < self.next or done >= total:
+            return
+        self.next = now + self.every
+        eta = (now - self.start) * (total - done) / max(done, 1)
+        print(f"hydromon sim: {self.what}: {100 * done / total:.0f} % ({done} of {total} samples), "
+              f"about {eta:.0f} s to go", file=self.stream or sys.stderr, flush=True)
+
+
 def check_args(args, spec) -> None:
     """Every option's check, before a file or the bus is touched (ValueError names the option)."""
     from hydromon import simnode
@@ -102,10 +123,13 @@ def check_args(args, spec) -> None:
     if args.to_csv:
         simnode.select_rig(spec, args.rig)
         _checks.writable_file("--to-csv", args.to_csv)
+        _checks.fits_on_disk("--to-csv", args.to_csv, simnode.file_bytes("csv", args.duration, h),
+                             f"{args.duration:g} s of one rig")
     if args.to_mcap:
-        if args.rig:
-            simnode.select_rig(spec, args.rig)
+        n_rigs = len(simnode.select_rig(spec, args.rig).rigs) if args.rig else len(spec.rigs)
         _checks.writable_file("--to-mcap", args.to_mcap)
+        _checks.fits_on_disk("--to-mcap", args.to_mcap, simnode.file_bytes("mcap", args.duration, h, n_rigs),
+                             f"{args.duration:g} s of {n_rigs} rig(s)")
 
 
 def run(args) -> int:
@@ -126,11 +150,13 @@ def run(args) -> int:
         with ExitStack() as files:
             if args.to_csv:
                 f = files.enter_context(replace_on_success(args.to_csv, "w", newline=""))
-                rows = simnode.write_csv(spec, args.duration, f, rig=args.rig)
+                rows = simnode.write_csv(spec, args.duration, f, rig=args.rig,
+                                         on_block=Progress(f"--to-csv {args.to_csv}"))
             if args.to_mcap:
                 one = simnode.select_rig(spec, args.rig) if args.rig else spec
                 f = files.enter_context(replace_on_success(args.to_mcap, "wb"))
-                n = simnode.write_mcap(one, args.duration, f, namespace=args.namespace)
+                n = simnode.write_mcap(one, args.duration, f, namespace=args.namespace,
+                                       on_block=Progress(f"--to-mcap {args.to_mcap}"))
         if args.to_csv:
             print(f"hydromon sim: {rows} samples of 1 rig -> {args.to_csv}", file=sys.stderr)
         if args.to_mcap:
