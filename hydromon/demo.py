@@ -29,6 +29,7 @@ import zenoh
 from hydromon.bus import free_tcp_endpoint, open_session
 from hydromon.contract import DEFAULT_NAMESPACE, _check_ns
 from hydromon.fleetfile import FleetSpec, RigSpec, default_fleet
+from hydromon.inprocess import Worker, await_recorder_and_monitor
 
 __all__ = ["DemoResult", "run_demo", "true_grade", "TABLE_PARAMS", "render_plain", "render_rich"]
 
@@ -126,29 +127,6 @@ def _recording_path(out_dir: Path) -> Path:
     return path
 
 
-class _Worker(threading.Thread):
-    """A daemon thread that keeps its target's result or exception."""
-
-    def __init__(self, name, target):
-        super().__init__(name=name, daemon=True)
-        self._target_fn, self.result, self.error = target, None, None
-
-    def run(self):
-        try:
-            self.result = self._target_fn()
-        except BaseException as exc:  # re-raised in the caller
-            self.error = exc
-
-
-def _wait(pred, timeout_s: float, what: str, stop: threading.Event) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not pred():
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"demo: timed out after {timeout_s} s waiting for {what}")
-        if stop.wait(0.01):
-            return
-
-
 def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
              namespace: str = DEFAULT_NAMESPACE, fleet: FleetSpec | None = None,
              stop_event: threading.Event | None = None, live: bool | None = None,
@@ -212,25 +190,15 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
                 except orjson.JSONDecodeError:
                     pass
 
-        rec = _Worker("recorder", lambda: record(session, path, namespace=namespace, stop_event=stop_rec))
-        mon = _Worker("monitor", lambda: run_monitor(session, namespace=namespace, node_name="demo",
+        rec = Worker("recorder", lambda: record(session, path, namespace=namespace, stop_event=stop_rec))
+        mon = Worker("monitor", lambda: run_monitor(session, namespace=namespace, node_name="demo",
                                                      stop_event=stop_mon, core=core))
-        sim = _Worker("sim", lambda: run_sim(session, spec, namespace=namespace, rate=rate, stop_event=stop_sim))
+        sim = Worker("sim", lambda: run_sim(session, spec, namespace=namespace, rate=rate, stop_event=stop_sim))
         workers = (rec, mon, sim)
         try:
             rec.start()
             mon.start()
-            # a probe only the recorder's <ns>/** matches, and the monitor's token (declared
-            # after its subscriptions): once both are seen, the sim's first samples are heard
-            probe = session.declare_publisher(f"{namespace}/demo-probe")
-            _wait(lambda: probe.matching_status.matching or rec.error is not None, 30, "the recorder", stop)
-            probe.undeclare()
-            _wait(lambda: mon.error is not None or any(
-                r.ok is not None for r in session.liveliness().get(f"{namespace}/monitor/demo", timeout=1.0)),
-                30, "the monitor", stop)
-            for w in workers:
-                if w.error is not None:
-                    raise w.error
+            await_recorder_and_monitor(session, namespace, "demo", rec, mon, "demo", stop)
             sim.start()
             print(f"hydromon demo: {len(spec.rigs)} rig(s) at "
                   f"{'max speed' if rate == 0 else f'{rate:g}x real time'}, bus {endpoint}, recording {path}",

@@ -32,7 +32,6 @@ import os
 import sys
 import tempfile
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +39,7 @@ import orjson
 
 from hydromon.contract import DEFAULT_NAMESPACE
 from hydromon.fleetfile import FleetSpec, RigSpec, default_fleet
+from hydromon.inprocess import Worker, await_recorder_and_monitor
 
 __all__ = ["Segment", "Golden", "GOLDENS", "RECORDINGS_DIR", "MadeGolden", "make_golden", "write_goldens",
            "stored_health", "read_health_jsonl", "check_golden", "true_grades", "main"]
@@ -124,26 +124,6 @@ class MadeGolden:
     final: dict[str, str] = field(default_factory=dict)  # rig id -> last grade
 
 
-class _Worker(threading.Thread):
-    def __init__(self, name, target):
-        super().__init__(name=name, daemon=True)
-        self._fn, self.result, self.error = target, None, None
-
-    def run(self):
-        try:
-            self.result = self._fn()
-        except BaseException as exc:  # re-raised by the caller
-            self.error = exc
-
-
-def _wait(pred, timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not pred():
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"goldens: timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.01)
-
-
 def make_golden(golden: Golden, path, *, rate: float = 20.0, namespace: str = DEFAULT_NAMESPACE) -> MadeGolden:
     """Run sim, monitor and recorder live on one embedded session; record to ``path``.
 
@@ -169,21 +149,13 @@ def make_golden(golden: Golden, path, *, rate: float = 20.0, namespace: str = DE
     stop_mon, stop_rec = threading.Event(), threading.Event()
     published = 0
     with open_session("peer", multicast=False) as session:
-        rec = _Worker("recorder", lambda: record(session, path, namespace=namespace, stop_event=stop_rec))
-        mon = _Worker("monitor", lambda: run_monitor(session, namespace=namespace, node_name=_NODE,
+        rec = Worker("recorder", lambda: record(session, path, namespace=namespace, stop_event=stop_rec))
+        mon = Worker("monitor", lambda: run_monitor(session, namespace=namespace, node_name=_NODE,
                                                      stop_event=stop_mon, core=core))
         try:
             rec.start()
             mon.start()
-            probe = session.declare_publisher(f"{namespace}/goldens-probe")  # only the recorder matches
-            _wait(lambda: probe.matching_status.matching or rec.error is not None, 30, "the recorder")
-            probe.undeclare()
-            _wait(lambda: mon.error is not None or any(
-                r.ok is not None for r in session.liveliness().get(f"{namespace}/monitor/{_NODE}", timeout=1.0)),
-                30, "the monitor")
-            for w in (rec, mon):
-                if w.error is not None:
-                    raise w.error
+            await_recorder_and_monitor(session, namespace, _NODE, rec, mon, "goldens")
             fleet = None
             for seg in golden.segments:
                 if fleet is None or seg.restart:
