@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from plant_sim.params import RigConfig
 
 __all__ = [
-    "Sample", "Health", "RigConfig", "GRADES", "STATUSES", "PARAM_NAMES", "SEQ_MAX", "RESTART_RUN", "SAMPLE_LIMITS",
+    "Sample", "Health", "RigConfig", "SAMPLE_COLUMNS", "GRADES", "STATUSES", "PARAM_NAMES", "SEQ_MAX", "RESTART_RUN", "SAMPLE_LIMITS",
     "RIG_ID_RE", "valid_rig_id", "sample_key", "health_key", "config_key", "liveliness_key",
     "parse_rig_key", "DEFAULT_NAMESPACE",
 ]
@@ -122,6 +122,11 @@ class Sample(_Payload):
         if isinstance(v, bool) or not isinstance(v, int):
             raise ValueError("must be an integer")
         return v
+
+
+# the measured columns of a sample, in payload order: t [s], ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m]
+# (a CSV record's header and the columns of an MCAP's sample array)
+SAMPLE_COLUMNS = tuple(name for name in Sample.model_fields if name != "seq")
 
 
 class Health(_Payload):

@@ -30,17 +30,16 @@ import numpy as np
 import orjson
 from pydantic import ValidationError
 
-from hydromon.contract import SAMPLE_LIMITS, SEQ_MAX, RigConfig, Sample
+from hydromon.contract import SAMPLE_COLUMNS, SAMPLE_LIMITS, SEQ_MAX, RigConfig, Sample
 
 __all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_config", "parse_sample", "sim_samples"]
 
 REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-field", "wrong-type",
                   "unknown-field", "bad-value", "too-many-rigs")
-_SAMPLE_FIELDS = ("seq", "t", "ug", "x1", "x3", "x4", "x5")
-_SAMPLE_FIELD_SET = frozenset(_SAMPLE_FIELDS)
+_SAMPLE_FIELD_SET = frozenset(Sample.model_fields)
 _NUM = (float, int)
 _SEQ = itemgetter(0)
-_L_UG, _L_X1, _L_X3, _L_X4, _L_X5 = (SAMPLE_LIMITS[k] for k in ("ug", "x1", "x3", "x4", "x5"))
+_L_UG, _L_X1, _L_X3, _L_X4, _L_X5 = (SAMPLE_LIMITS[k] for k in SAMPLE_COLUMNS[1:])
 #: |value| limits of the columns (ug, x1, x3, x4, x5), for checking a whole batch at once
 VALUE_LIMITS = np.array([_L_UG, _L_X1, _L_X3, _L_X4, _L_X5])
 

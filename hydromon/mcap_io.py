@@ -37,7 +37,7 @@ from mcap.stream_reader import CRCValidationError, get_chunk_data_stream
 from mcap.writer import CompressionType
 from pydantic import ValidationError
 
-from hydromon.contract import Health, RigConfig, Sample, valid_rig_id
+from hydromon.contract import RIG_ID_RE, SAMPLE_COLUMNS, Health, RigConfig, Sample, valid_rig_id
 
 __all__ = [
     "RecordingError", "TruncatedRecording", "CorruptRecording", "EmptyRecording", "RecordingWriter",
@@ -48,14 +48,11 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 MAGIC = b"\x89MCAP0\r\n"
-SAMPLE_COLUMNS = ("t", "ug", "x1", "x3", "x4", "x5")
-"""Columns of :func:`read_samples`: t [s], ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m]."""
 LEAF_MODELS = {"sample": Sample, "health": Health, "config": RigConfig}
-_TOPIC_RE = re.compile(r"(?:.+/)?rig/([A-Za-z0-9_-]{1,64})/(sample|health|config)")
+_TOPIC_RE = re.compile(rf"(?:.+/)?rig/({RIG_ID_RE.pattern})/({'|'.join(LEAF_MODELS)})")
 _COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 _U64 = 2**64
 
-# what a damaged file can make the mcap library raise while decoding
 # what the mcap library raises on damaged bytes (a flipped bit in a length field gives an
 # OverflowError from its stream reader, or a MemoryError for a huge allocation)
 _DECODE_ERRORS = (McapError, ValueError, KeyError, struct.error, EOFError, zstandard.ZstdError,

@@ -21,13 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from hydromon.contract import RESTART_RUN, SAMPLE_LIMITS
+from hydromon.contract import RESTART_RUN, SAMPLE_COLUMNS, SAMPLE_LIMITS
 from plant_sim.params import RigConfig
 
 __all__ = ["CSV_COLUMNS", "RATE_TOL", "Recording", "read_csv", "load_recording", "check_increasing",
            "check_sampling", "csv_text"]
 
-CSV_COLUMNS = ("t", "ug", "x1", "x3", "x4", "x5")
+CSV_COLUMNS = SAMPLE_COLUMNS  # a CSV record has the sample payload's columns
 RATE_TOL = 0.01  # allowed relative deviation of each sample interval from 1 / sample_rate
 # the median interval further than this from one period [relative] means another rate or unit
 # (a quarter, not a half: 200 Hz sits at half a period, where rounding goes either way)
