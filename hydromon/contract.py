@@ -138,12 +138,12 @@ class Health(_Payload):
 
     seq: int = Field(ge=0, le=SEQ_MAX)
     t: float
-    grade: Literal["health", "sub-health", "average", "deterioration", "fault", "unknown"]
+    grade: Literal[GRADES + ("unknown",)]
     level: int | None = Field(None, ge=0, le=4)
     confidence: float = Field(ge=0.0, le=1.0)
     params: dict[str, float]
-    param_grades: dict[str, Literal["health", "sub-health", "average", "deterioration", "fault", "unknown"]]
-    status: Literal["converging", "ok", "stale", "bad-input"]
+    param_grades: dict[str, Literal[GRADES + ("unknown",)]]
+    status: Literal[STATUSES]
     std_errors: dict[str, float] = Field(default_factory=dict)
 
 
