@@ -27,7 +27,7 @@ import orjson
 import zenoh
 
 from hydromon.bus import free_tcp_endpoint, open_session
-from hydromon.contract import DEFAULT_NAMESPACE, _check_ns
+from hydromon.contract import DEFAULT_NAMESPACE, _check_ns, parse_rig_key
 from hydromon.fleetfile import FleetSpec, RigSpec, default_fleet
 from hydromon.inprocess import Worker, await_recorder_and_monitor
 
@@ -184,9 +184,11 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
 
         def drain():
             while (m := sub.try_recv()) is not None:
-                key = str(m.key_expr)
+                parsed = parse_rig_key(str(m.key_expr), namespace)
+                if parsed is None:
+                    continue
                 try:
-                    health[key[len(namespace) + 5:].split("/")[0]] = orjson.loads(m.payload.to_bytes())
+                    health[parsed[0]] = orjson.loads(m.payload.to_bytes())
                 except orjson.JSONDecodeError:
                     pass
 
