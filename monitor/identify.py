@@ -195,12 +195,13 @@ def _valve_row(st, rc, hyper, n, phi, z):
 
 
 WORK_SIZE = 80
+V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
+
 # The per-sample pieces (gate_step, identify_step, _consume, _force_rows, _chamber_rows) are inlined
 # into their caller at numba's IR level: as separate compiled calls the 1000-rig batch ran at
 # 782,000 samples/s, inlined at 925,000 (one thread, process time, same minutes); a fresh
 # compile still takes about 22 s. Inlining the small helpers as well tripled the compile time
 # for 3 % more.
-V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
 @njit(cache=True, error_model="numpy", inline="always")
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
                   ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:

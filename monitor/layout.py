@@ -76,9 +76,9 @@ O_CLAMPED = OFFSETS["CLAMPED"][0]
 
 # Per-rig constants row (SI): the rig config the equations need.
 (C_A1, C_A2, C_V10, C_V20, C_PS, C_FL, C_KP, C_KF) = range(8)
-RIG_CONST_SIZE = 8
+RIG_CONST_SIZE = C_KF + 1
 
 # Hyperparameter row shared by a fleet (see ident_options.IdentOptions).
 (H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD,
  H_GATE2) = range(13)
-HYPER_SIZE = 13
+HYPER_SIZE = H_GATE2 + 1

@@ -16,16 +16,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hydromon.contract import GRADES, PARAM_NAMES
+from hydromon.contract import PARAM_NAMES
+from plant_sim.noise import CHANNELS
 from plant_sim.params import RigConfig
 
-from .fleet_kernel import _run, assess_rig, partition_rigs, pipeline_step
+from .fleet_kernel import N_P, _run, assess_rig, partition_rigs, pipeline_step
 from .grading import Ranges, grade_kernel
 from .ident_options import IdentOptions, Kernels, new_state, reset_signals, rig_constants
-from .layout import O_CLAMPED, O_OUTLIERS, STATE_SIZE
+from .layout import O_CLAMPED, O_OUTLIERS, RIG_CONST_SIZE, STATE_SIZE
 from .plausibility import any_impossible, implausible_names
-
-N_P = len(PARAM_NAMES)
+from .ranges import grade_name
 
 
 def eval_phase(rig_id: str, eval_every: int) -> int:
@@ -68,11 +68,11 @@ class Assessment:
 
     @property
     def grade(self) -> str:
-        return GRADES[self.level] if self.level >= 0 else "unknown"
+        return grade_name(self.level)
 
     @property
     def param_grades(self) -> dict:
-        return {k: (GRADES[v] if v >= 0 else "unknown") for k, v in self.param_levels.items()}
+        return {k: grade_name(v) for k, v in self.param_levels.items()}
 
 
 @dataclass(frozen=True)
@@ -168,7 +168,7 @@ class Fleet:
         self.index: dict[str, int] = {}
         capacity = max(1, capacity)
         self.states = np.zeros((capacity, STATE_SIZE))
-        self.consts = np.zeros((capacity, 8))
+        self.consts = np.zeros((capacity, RIG_CONST_SIZE))
         self.counts = np.zeros(capacity, dtype=np.int64)
         self.phase = np.zeros(capacity, dtype=np.int64)
         self.bands = np.full((capacity, len(self._ra.index)), -1, dtype=np.int64)
@@ -297,8 +297,8 @@ class Fleet:
 
     def glitches(self, rig: int) -> dict[str, int]:
         """Sensor samples of one rig the outlier gate replaced so far, per sensor."""
-        counts = self.states[rig, O_OUTLIERS:O_OUTLIERS + 4]
-        return {name: int(c) for name, c in zip(("x1", "x3", "x4", "x5"), counts)}
+        counts = self.states[rig, O_OUTLIERS:O_OUTLIERS + len(CHANNELS)]
+        return {name: int(c) for name, c in zip(CHANNELS, counts)}
 
     def x1_clamped(self, rig: int) -> int:
         """Samples of one rig whose x1 would have emptied a chamber (V_i under 1 % of V_i0): not

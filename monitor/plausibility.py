@@ -1,4 +1,4 @@
-"""Physically impossible estimates: the sign of input in wrong units, with the wrong sign, or
+"""Physically impossible estimates: the sign of input in wrong units, of the wrong sign, or taken
 under the wrong rig constants.
 
 Compressibility (1/beta_e), the orifice coefficient (C_d W/sqrt(rho)) and the valve's static

@@ -36,6 +36,7 @@ from hydromon.contract import PARAM_NAMES
 from monitor.ident_options import IdentOptions
 from monitor.outlier_gate import gated
 from plant_sim.model import derivatives
+from plant_sim.noise import CHANNELS
 from plant_sim.params import (
     P_B, P_BETA, P_CDW_RHO, P_CEP, P_CIP, P_FC, P_FV, P_KSV, P_KT, P_M, P_WSV, P_ZSV, PlantParams, RigConfig,
     plant_vector,
@@ -229,7 +230,7 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
         w = innovations(meas, ug, u * NOMINAL, base, h, sig, PROCESS_NOISE, n0)
         return np.where(np.isfinite(w), w, 1e6)
 
-    noise_d = dict(zip(("x1", "x3", "x4", "x5"), map(float, sig)))
+    noise_d = dict(zip(CHANNELS, map(float, sig)))
     fail = Refinement(_with_static_gain(th0, None)[0], dict.fromkeys(PARAM_NAMES, math.inf), False, "", 0, noise_d)
     try:
         res = least_squares(cost, th0 / NOMINAL, method="lm", x_scale="jac", max_nfev=max_evaluations)

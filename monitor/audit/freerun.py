@@ -19,13 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from plant_sim.integrate import DEFAULT_SUBSTEPS, run_fleet
+from plant_sim.noise import CHANNELS
 from plant_sim.params import Effects, PlantParams, RigConfig, plant_vector
 from plant_sim.profiles import FromFile
 from plant_sim.simulate import command_grid
 
 __all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "CHANNELS"]
 
-CHANNELS = ("x1", "x3", "x4", "x5")
 _RHO, _CD = 880.0, 0.6
 
 
