@@ -158,8 +158,8 @@ def _noise_update(st, n, hyper):
 
 
 @njit(cache=True, error_model="numpy")
-def _valve_row(st, rc, hyper, n, phi, z):
-    """Valve ARX(2,3) row at the newest sample n (needs n >= 2)."""
+def _valve_row(st, rc, hyper, phi, z):
+    """Valve ARX(2,3) row at the newest sample (needs three in the ring: n >= 2)."""
     kp, kf = rc[C_KP], rc[C_KF]
     du0 = kp * (_ring(st, 0, 0) - kf * _ring(st, 0, 1))
     du1 = kp * (_ring(st, 1, 0) - kf * _ring(st, 1, 1))
@@ -231,7 +231,7 @@ def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
     z5 = work[5:10]
     w = work[10:20]
     if n >= 2:
-        y, step = _valve_row(st, rc, hyper, n, phi5, z5)
+        y, step = _valve_row(st, rc, hyper, phi5, z5)
         if not step:
             th = st[O_TH_V:O_TH_V + 5]
             P = st[O_P_V:O_P_V + 25].reshape((5, 5))

@@ -258,7 +258,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     split = int(opt.train_fraction * sig.n)
     cache: dict = {}  # valve fits by what they depend on
     nominal = fit_blocks(build_blocks(sig, cfg, Spec()), split, cfg.h, cache)
-    p_nom = nominal_params(nominal, cfg, cfg.h)
+    p_nom = nominal_params(nominal)
     theta0 = max(p_nom["CdW_sqrt_rho"], 1e-6)
     nom_tr, nom_te = _mse_split(nominal, split)
     test = slice(split, sig.n)
@@ -321,7 +321,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         score = _log_ratio(nom_te, te) - opt.penalty * cand.n_extra
         if _log_ratio(nom_tr, tr) <= 0:
             score = min(score, 0.0)  # no better on the data it was fitted to: noise
-        params = nominal_params(fit, cfg, cfg.h)
+        params = nominal_params(fit)
         effect = cand.effects(value, fit.theta)
         gain, fr, sim = math.nan, {}, None
         if opt.free_run:
@@ -334,7 +334,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                         pf = fit_at(cand, value * f)[2]
                     except ValueError:
                         continue
-                    models.append((nominal_params(pf, cfg, cfg.h), cand.effects(value * f, pf.theta)))
+                    models.append((nominal_params(pf), cand.effects(value * f, pf.theta)))
             if hasattr(cand, "free_run_variables") and score > opt.threshold:
                 models.append(_output_error(cand, params, effect, s, cfg, measured, split, p_nom,
                                             float(sig.vl[0])))

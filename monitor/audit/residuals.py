@@ -250,7 +250,7 @@ def _valid_rows(sig: Signals) -> np.ndarray:
     return np.arange(MARGIN, sig.n - MARGIN)
 
 
-def _compress(sig, x, v, p, G):
+def _compress(sig, x, v, G):
     # L[V x' G'(p)] with V = V0 + A x: L[(V G(p))'] - A L[v G(p)] ~ D[V G] - A v L[G]
     return sig.deriv(x * G) - v * sig.smooth(G)
 
@@ -300,8 +300,8 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     v1 = cfg.V10 + a1 * x1
     v2 = cfg.V20 - a2 * x1
     ident = lambda p: p  # noqa: E731  (G(p) = p: the oil term)
-    dv1 = _compress(sig, v1, a1 * v, p1, ident(p1))
-    dv2 = _compress(sig, v2, -a2 * v, p2, ident(p2))
+    dv1 = _compress(sig, v1, a1 * v, ident(p1))
+    dv2 = _compress(sig, v2, -a2 * v, ident(p2))
     x5, p1l, p2l = sig.x5, sig.x3, sig.x4  # raw: the product is formed first, then filtered
     if spec.flow is None:
         z1, z2 = orifice_factors(x5, p1l, p2l, cfg.p_s)
@@ -320,7 +320,7 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     loads = [load0, 0 * load0, 0 * load0, 0 * load0]
     for name, fn in spec.chamber_cols.items():
         g1, g2, c1, c2 = fn(sig, cfg, x1, p1l, p2l)
-        ccols[name] = (-_compress(sig, v1, a1 * v, p1, g1), -_compress(sig, v2, -a2 * v, p2, g2))
+        ccols[name] = (-_compress(sig, v1, a1 * v, g1), -_compress(sig, v2, -a2 * v, g2))
         loads.append(load0 * np.concatenate([c1[rows], c2[rows]]))
     cy = np.concatenate([a1 * v[rows], -a2 * v[rows]])
     cX = np.column_stack([np.concatenate([c[0][rows], c[1][rows]]) for c in ccols.values()])
@@ -446,7 +446,7 @@ def fit_blocks(blocks: dict[str, Block], train_end: int, h: float, cache: dict |
     return Fit(blocks=blocks, theta=theta, residuals=res, noise_terms=noise)
 
 
-def nominal_params(fit: Fit, cfg: RigConfig, h: float) -> dict[str, float]:
+def nominal_params(fit: Fit) -> dict[str, float]:
     """The identified parameters by bus name (``hydromon.contract.PARAM_NAMES``), SI."""
     f, c, v = fit.theta["force"], fit.theta["chamber"], fit.theta["valve"]
     return {"m": f["m"], "B_fv": f["B_fv"], "f_c": f["f_c"], "K_t": f["K_t"],
