@@ -48,10 +48,11 @@ class Evaluation:
     def status(self) -> str:
         """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``) or x1
         went beyond a chamber's end,
-        ``ok`` once converged, else ``converging`` (the live monitor's statuses)."""
+        ``ok`` once converged with a grade placed, else ``converging`` (the live monitor's
+        statuses: a converged rig whose grade cannot be placed, level -1, is still converging)."""
         if self.assessment.implausible or self.x1_clamped:  # as the live monitor says
             return "bad-input"
-        return "ok" if self.assessment.converged else "converging"
+        return "ok" if self.assessment.converged and self.assessment.level >= 0 else "converging"
 
 
 def evaluate(recording: Recording, ranges: Ranges | None = None,

@@ -388,3 +388,18 @@ def test_the_valve_note_explains_only_where_omega_is_unidentified(tmp_path, caps
         out = " ".join(capsys.readouterr().out.split())
         assert "the valve is graded on its static gain K_sv" in out, name
         assert ("needs the valve's dynamics excited" in out) == why, (name, out)
+
+
+@pytest.mark.parametrize("converged, level, implausible, status", [
+    (True, 2, (), "ok"),
+    (True, -1, (), "converging"),  # converged but no grade placed: the live monitor says converging
+    (False, -1, (), "converging"),
+    (True, -1, ("B_fv",), "bad-input"),
+])
+def test_status_follows_the_live_monitors_rule(converged, level, implausible, status):
+    from hydromon.evaluate import Evaluation
+    from monitor.pipeline import Assessment
+
+    a = Assessment(count=1000, level=level, confidence=0.0, params={}, std_errors={}, param_levels={},
+                   converged=converged, implausible=implausible)
+    assert Evaluation(recording=None, assessment=a).status == status
