@@ -189,6 +189,40 @@ def parse_profile(spec: str) -> Profile:
         if name == "multisine" and "freqs" in kwargs:
             kwargs["freqs"] = tuple(float(f) for f in kwargs["freqs"].split("/"))
         typed = {k: (v if k == "freqs" else float(v)) for k, v in kwargs.items()}
-        return cls(**typed)
+        prof = cls(**typed)
     except TypeError as exc:
         raise ValueError(f"profile {spec!r}: {exc}") from None
+    _check_values(spec, prof)
+    return prof
+
+
+#: fields a profile divides by or takes the period of: must be > 0
+_POSITIVE = ("period", "sweep", "freq")
+#: [V] a built-in profile's command stays within this (the bus contract's |ug| limit, as FromFile)
+_UG_LIMIT = 1e3
+
+
+def _check_values(spec: str, prof: Profile) -> None:
+    """Every value finite, periods/sweeps/frequencies > 0, and the command's worst case within
+    the contract's |ug| limit: otherwise a simulation writes NaN or out-of-contract samples
+    (or divides by zero) instead of one error line."""
+    values = {k: v for k, v in prof.__dict__.items() if isinstance(v, float)}
+    freqs = getattr(prof, "freqs", None)
+    if isinstance(freqs, tuple):
+        values.update({f"freqs[{i}]": f for i, f in enumerate(freqs)})
+    for k, v in values.items():
+        if not math.isfinite(v):
+            raise ValueError(f"profile {spec!r}: {k} = {v!r} must be a finite number")
+        if (k in _POSITIVE or k.startswith("freqs[")) and v <= 0:
+            raise ValueError(f"profile {spec!r}: {k} = {v!r} must be > 0")
+    if isinstance(prof, Chirp) and (prof.f0 < 0 or prof.f1 < 0):
+        raise ValueError(f"profile {spec!r}: f0 and f1 must be >= 0 Hz")
+    if isinstance(prof, Steps):
+        bound = max(abs(prof.low), abs(prof.high))
+    elif isinstance(prof, PaperVariable):
+        bound = 3.0  # 2.5 V level + 0.5 V sine
+    else:
+        bound = abs(getattr(prof, "offset", 0.0)) + abs(getattr(prof, "amplitude", 0.0))
+    if bound > _UG_LIMIT:
+        raise ValueError(f"profile {spec!r}: the command would reach {bound:g} V, beyond +-{_UG_LIMIT:g} V "
+                         "(ug in volts, SI)")

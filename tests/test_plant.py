@@ -161,3 +161,19 @@ def test_sensor_delay_in_recording_only():
 def test_command_grid_shape():
     g = command_grid(PaperIdentification(), 5, 0.01, 10)
     assert g.shape == (4, 21) and g[0, 0] == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize("spec", ["chirp:sweep=0", "paper-var:period=0", "steps:period=-2", "paper-id:freq=nan",
+                                  "steps:low=inf", "paper-id:amplitude=1e9", "multisine:freqs=1/0",
+                                  "chirp:f1=-3"])
+def test_parse_profile_refuses_values_that_simulate_to_nan_or_out_of_contract(spec):
+    # before: chirp:sweep=0 was a ZeroDivisionError traceback mid-run, freq=nan / low=inf wrote a
+    # CSV of NaN with exit 0, amplitude=1e9 wrote pressures of -1.8e13 Pa, period=0 was ignored
+    with pytest.raises(ValueError, match="profile"):
+        parse_profile(spec)
+
+
+def test_parse_profile_accepts_the_documented_examples():
+    for spec in ("paper-var", "paper-id", "steps:low=1.5,high=2.5", "chirp", "multisine",
+                 "multisine:freqs=0.5/1/2", "paper-var:period=20", "steps:low=-3,high=3"):
+        parse_profile(spec)
