@@ -198,8 +198,6 @@ def parse_profile(spec: str) -> Profile:
 
 #: fields a profile divides by or takes the period of: must be > 0
 _POSITIVE = ("period", "sweep", "freq")
-#: [V] a built-in profile's command stays within this (the bus contract's |ug| limit, as FromFile)
-_UG_LIMIT = 1e3
 
 
 def _check_values(spec: str, prof: Profile) -> None:
@@ -220,9 +218,9 @@ def _check_values(spec: str, prof: Profile) -> None:
     if isinstance(prof, Steps):
         bound = max(abs(prof.low), abs(prof.high))
     elif isinstance(prof, PaperVariable):
-        bound = 3.0  # 2.5 V level + 0.5 V sine
+        bound = 3.0  # its 2.5 V level + 0.5 V sine (only its period is a parameter)
     else:
         bound = abs(getattr(prof, "offset", 0.0)) + abs(getattr(prof, "amplitude", 0.0))
-    if bound > _UG_LIMIT:
-        raise ValueError(f"profile {spec!r}: the command would reach {bound:g} V, beyond +-{_UG_LIMIT:g} V "
+    if bound > FromFile.UG_LIMIT:  # the bus contract's |ug| limit, as for a profile file
+        raise ValueError(f"profile {spec!r}: the command would reach {bound:g} V, beyond +-{FromFile.UG_LIMIT:g} V "
                          "(ug in volts, SI)")
