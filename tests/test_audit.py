@@ -184,6 +184,25 @@ def test_cli_exits_1_on_a_record_that_does_not_obey_the_model(tmp_path, capsys):
     assert doc["cause"] == "none" and "does not obey the model" in doc["note"]
 
 
+def test_cli_prints_the_result_before_a_report_that_fails(tmp_path, capsys, monkeypatch):
+    import errno
+
+    from hydromon import audit_report
+    from hydromon.cli import main
+
+    def disk_full(result, directory):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(audit_report, "write_report", disk_full)
+    _, run = hidden_case(3, "load_offset")
+    path = tmp_path / "rec.csv"
+    write_csv(path, run)
+    assert main(["audit", str(path), "--json", "--report", str(tmp_path / "rep")]) == 2
+    out, err = capsys.readouterr()
+    assert json.loads(out)["cause"] == "load_offset"  # the work is not lost with the report
+    assert "No space left on device (the result above is complete)" in err
+
+
 def test_cli_mcap(tmp_path, capsys):
     from hydromon.cli import main
     from hydromon.fleetfile import spread_fleet

@@ -108,13 +108,17 @@ def run(args) -> int:
         writable_dir("--report", args.report)
     config, samples, stretch = load(args.file, args.rig, config_from_args(args))
     result = audit(samples, config, options)
-    if args.report:
-        path = write_report(result, args.report)
-        print(f"hydromon audit: report -> {path}", file=sys.stderr)
+    # the result first: a report that cannot be written (disk full) must not take it along
     if args.json:
-        print(json.dumps({**to_json(result), "stretch": stretch}))
+        print(json.dumps({**to_json(result), "stretch": stretch}), flush=True)
     else:
-        print(summary(result))
+        print(summary(result), flush=True)
+    if args.report:
+        try:
+            path = write_report(result, args.report)
+        except OSError as exc:
+            raise ValueError(f"--report {args.report!r}: {exc.strerror or exc} (the result above is complete)") from None
+        print(f"hydromon audit: report -> {path}", file=sys.stderr)
     # a record that does not obey the model (wrong units, signs, zeros or rig constants) is
     # audited and reported, but its cause "none" does not mean "the model is right": a script
     # must not read it as a pass
