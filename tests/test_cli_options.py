@@ -280,6 +280,15 @@ def test_replay_direct_start_and_duration_grade_the_window_only(two_rigs, tmp_pa
     assert "start" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("opt", [["--rate", "0.5"], ["--wait", "1"], ["--loop"]])
+def test_replay_direct_refuses_the_bus_replays_pacing_options(two_rigs, capsys, opt):
+    # --direct grades as fast as it can: a --rate or --wait given with it was silently ignored
+    assert main(["replay", str(two_rigs), "--direct", *opt]) == 2
+    assert f"{opt[0]} has no meaning with --direct" in capsys.readouterr().err
+    assert main(["replay", str(two_rigs), "--rate", "-1"]) == 2  # the bus replay still checks them
+    assert "--rate" in capsys.readouterr().err
+
+
 def test_a_replay_window_carries_each_rigs_config_from_before_it(tmp_path, capsys):
     # the configs are recorded once, at t = 0: a window starting later used to leave them out,
     # and the monitor graded the rig with the default constants (p_s 10 MPa, not 14)

@@ -20,7 +20,7 @@ def KERNELS(args) -> bool:  # noqa: N802 (read by hydromon.cli like the other co
 
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE", help="an MCAP recording")
-    parser.add_argument("--rate", type=float, default=1.0,
+    parser.add_argument("--rate", type=float, default=None,
                         help="speed relative to the recording, 0 = as fast as possible (default 1)")
     parser.add_argument("--keys", action="append", default=None, metavar="KEYEXPR",
                         help="replay only topics matching this zenoh key expression, e.g. 'hydro/rig/*/sample' "
@@ -32,7 +32,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="replay this many seconds of the recording")
     parser.add_argument("--loop", action="store_true", help="play the window again and again until Ctrl-C")
-    parser.add_argument("--wait", type=float, default=3.0, metavar="S",
+    parser.add_argument("--wait", type=float, default=None, metavar="S",
                         help="wait up to S seconds for a subscriber before sending (default 3)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--direct", action="store_true",
@@ -50,18 +50,22 @@ def check_args(args) -> None:
     from hydromon.contract import _check_ns
     from hydromon.replay import KeyFilter
 
-    _checks.non_negative("--rate", args.rate)
     _checks.non_negative("--start", args.start, unit="s")
     _checks.non_negative("--duration", args.duration, unit="s")
-    _checks.non_negative("--wait", args.wait, unit="s")
     _check_ns(args.namespace)
     KeyFilter(args.keys)  # a bad --keys expression
     if args.direct:
-        if args.loop:
-            raise ValueError("--loop has no meaning with --direct")
+        # it grades as fast as it can, with no bus: pacing and waiting for subscribers do not apply
+        for opt, given in (("--loop", args.loop), ("--rate", args.rate is not None), ("--wait", args.wait is not None)):
+            if given:
+                raise ValueError(f"{opt} has no meaning with --direct")
         if args.out:
             _checks.writable_file("--out", args.out)
     else:
+        args.rate = 1.0 if args.rate is None else args.rate
+        args.wait = 3.0 if args.wait is None else args.wait
+        _checks.non_negative("--rate", args.rate)
+        _checks.non_negative("--wait", args.wait, unit="s")
         if args.out:
             raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
         if args.ranges is not None:
