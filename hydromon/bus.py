@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import socket
 from collections.abc import Iterable
 
@@ -50,7 +51,9 @@ def make_config(mode: str = "peer", connect: Iterable[str] = (), listen: Iterabl
     connect, listen : iterable of str
         Zenoh endpoints such as ``tcp/127.0.0.1:7447``.
     multicast : bool
-        Enable multicast scouting (off by default: only the explicit endpoints are used).
+        Enable multicast scouting (off by default: nodes meet only through the explicit
+        endpoints; a peer given no ``listen`` still listens on a random port of every
+        interface, zenoh's default, which no other node can know).
     """
     if mode not in MODES:
         raise ValueError(f"zenoh mode {mode!r}: choose one of {', '.join(MODES)}")
@@ -103,9 +106,24 @@ def add_bus_arguments(parser: argparse.ArgumentParser, default_mode: str = "peer
     g.add_argument("--multicast", action="store_true", help="enable multicast scouting (off by default)")
 
 
+def isolation_hint(mode: str, connect, listen, multicast: bool) -> str | None:
+    """Why a node with these flags will meet no other node, or None. A peer or client with no
+    endpoint and no multicast scouting is alone: two nodes started with default flags each wait
+    for the other, and nothing says so."""
+    if mode == "router" or connect or listen or multicast:
+        return None
+    return ("no --connect, --listen or --multicast: this node will meet no other node (e.g. --listen "
+            "tcp/127.0.0.1:7447 on one node and --connect tcp/127.0.0.1:7447 on the others, "
+            "or --multicast on all)")
+
+
 def session_from_args(args: argparse.Namespace) -> zenoh.Session:
-    """Open the session described by the flags of :func:`add_bus_arguments`."""
+    """Open the session described by the flags of :func:`add_bus_arguments` (a node that will
+    meet nobody says so on stderr: :func:`isolation_hint`)."""
     _check_ns(args.namespace)
+    hint = isolation_hint(args.mode, args.connect, args.listen, args.multicast)
+    if hint is not None:
+        print(f"hydromon {getattr(args, 'command', None) or 'node'}: warning: {hint}", file=sys.stderr, flush=True)
     return open_session(args.mode, args.connect, args.listen, args.multicast)
 
 

@@ -464,3 +464,16 @@ def test_the_console_entry_keeps_status_and_output(tmp_path):
     assert main(["sim", "--duration", "1", "--rig", "table4-g1", "--to-csv", str(csv)]) == 0
     out = run("evaluate", str(csv), "--json")
     assert out.returncode == 0 and orjson.loads(out.stdout)["status"]  # the whole document, flushed
+
+
+def test_a_node_that_will_meet_nobody_says_so(capsys):
+    # two nodes started with default flags (peer, no endpoint, multicast off) each waited for
+    # the other in silence
+    from hydromon.bus import isolation_hint
+
+    assert "will meet no other node" in isolation_hint("peer", [], [], False)
+    assert "will meet no other node" in isolation_hint("client", [], [], False)
+    for mode, connect, listen, multicast in (("peer", ["tcp/127.0.0.1:1"], [], False),
+                                             ("peer", [], ["tcp/127.0.0.1:1"], False),
+                                             ("peer", [], [], True), ("router", [], [], False)):
+        assert isolation_hint(mode, connect, listen, multicast) is None
