@@ -16,7 +16,10 @@ Rules (all in :func:`grade_kernel`, which the single-rig and batched paths share
   part in the fusion: f_c's 6 N health band under an SE of several N, or B+f_v's 1 % bands
   under a few % of SE, would otherwise decide the worst-of fusion by noise. A parameter that
   straddles one edge (grades lo|lo+1) still proves the grade is at least lo: the fused level
-  is never below that floor. When no multi-band parameter is placed (the two-level leakages
+  is never below that floor, and when the floor is what sets the level, that parameter shows
+  grade lo and counts as placed in the confidence (it showed ``unknown``, and the confidence
+  over the placed parameters, all better than the level, was ~0: a grade with no reason
+  shown). When no multi-band parameter is placed (the two-level leakages
   alone say nothing between health and deterioration), the straddler with the smallest SE
   relative to its band's width is graded at its value, so a rig near a band edge still gets a
   grade. (Measured on 180 seeded random rigs, tests/test_grading_random_rigs.py: 97 % right;
@@ -126,6 +129,7 @@ def grade_kernel(values, std_errors, converged, index, sign, edges, margins, z, 
         best_k = -1
         best_q = np.inf
         floor = -1
+        floor_k = -1
         n_multi = 0
         for k in range(n_g):
             v = values[r, index[k]]
@@ -147,6 +151,7 @@ def grade_kernel(values, std_errors, converged, index, sign, edges, margins, z, 
                 # width) may decide between lo and hi below
                 if lo > floor:
                     floor = lo
+                    floor_k = k
                 g = _count_past(u, f, m, 0.0)
                 width = _band_width(g, f)
                 q = s / width if width > 0.0 else np.inf
@@ -177,7 +182,13 @@ def grade_kernel(values, std_errors, converged, index, sign, edges, margins, z, 
                 if b > level[r]:
                     level[r] = b
         if floor > level[r]:
+            # the level is this parameter's doing: it shows as that grade (it is at least that
+            # bad) and counts in the confidence; before, it showed "unknown" and the confidence,
+            # taken over the placed parameters only, all below the level, was ~0
             level[r] = floor
+            if grades[r, floor_k] < 0:
+                grades[r, floor_k] = floor
+                n_placed += 1
         if level[r] < 0:
             continue
         p_le = 1.0

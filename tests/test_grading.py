@@ -433,3 +433,25 @@ def test_level_is_max_of_placed_and_confidence_bounded(rel_se, case):
             floor = max(floor, min(ends))
     assert lv[0] == max(placed.max() if placed.size else -1, floor)
     assert 0.0 <= conf[0] <= 1.0
+    # the reason is always shown: some parameter has the grade the rig has
+    assert lv[0] == -1 or lv[0] == gr[0].max()
+
+
+def test_a_level_set_by_a_straddling_parameter_is_shown_on_it_with_a_confidence():
+    # a review's record (paper-var, severity 0.53, 14 s): B + f_v's interval straddled the
+    # deterioration|fault edge; the rig was graded deterioration with confidence 0.000 and every
+    # parameter's grade better than that (B + f_v "unknown")
+    import math
+
+    e = Ranges.default().params["B_fv"].edges
+    values = {**TRUE, "B_fv": e[2] + 40.0}  # 40 N s/m past the average|deterioration edge
+    ses = dict.fromkeys(PARAM_NAMES, 0.0)
+    ses["B_fv"] = 30.0  # +-2 SE reaches back over that edge only: not placed, a floor
+    r = Grader().update(values, ses, True)
+    assert r.level == 2  # at least average: what the interval proves
+    assert r.param_levels["B_fv"] == 2  # the reason, shown
+    # the chance that average is right: P(B + f_v in the average band), every other parameter certain
+    def below(edge):
+        return 0.5 * math.erfc((values["B_fv"] - edge) / (30.0 * math.sqrt(2.0)))
+
+    assert r.confidence == pytest.approx(below(e[2]) - below(e[1]), rel=1e-9)  # 0.09
