@@ -72,7 +72,15 @@ def read_csv(src, name: str = "<csv>") -> np.ndarray:
     FileNotFoundError naming it. A UTF-8 byte order mark before the header is allowed.
     """
     if isinstance(src, (str, Path)):
-        return read_csv(io.StringIO(_read_text(Path(src)), newline=""), str(src))
+        text = _read_text(Path(src))
+        try:
+            return read_csv(io.StringIO(text, newline=""), str(src))
+        except ValueError as exc:
+            last = text.count("\n") + 1  # the line number of an unterminated last line
+            if text and not text.endswith(("\n", "\r")) and f" line {last}:" in str(exc):
+                raise ValueError(f"{exc}; it is the last line and has no line end: was the file cut short "
+                                 "(a logger stopped mid-write)? Remove that line") from None
+            raise
     reader = csv.reader(src)
     try:
         first = next(reader)

@@ -182,6 +182,23 @@ def test_csv_with_a_byte_order_mark_is_read(tmp_path):
     assert load_recording(p).samples.shape == (3, 5)
 
 
+@pytest.mark.parametrize("cut, error", [("0.03,2,0,1e6", "4 fields"), ("0.03,2,0,1e6,1e6,0", None),
+                                        ("0.03,2,0,1e6,1e6,1.", "beyond the contract's limit")])
+def test_a_csv_cut_mid_line_says_so(tmp_path, cut, error):
+    # a logger killed mid-write: the error named a field (for x5 with a units hint) and not the cut
+    p = tmp_path / "cut.csv"
+    p.write_text(GOOD + cut)
+    if error is None:  # a cut that leaves a valid row cannot be told from one: read as it is
+        assert load_recording(p).samples.shape == (4, 5)
+        return
+    with pytest.raises(ValueError, match=rf"line 5: .*{error}.*last line and has no line end: was the file cut short"):
+        load_recording(p)
+    p.write_text(GOOD + cut + "\n")  # the same line, terminated: the plain error
+    with pytest.raises(ValueError, match=error) as exc:
+        load_recording(p)
+    assert "cut short" not in str(exc.value)
+
+
 def test_missing_and_binary_csv_errors_name_the_file(tmp_path, capsys):
     missing = tmp_path / "missing.csv"
     assert main(["evaluate", str(missing)]) == 2
