@@ -12,6 +12,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from monitor.names import GRADES, PARAM_NAMES  # the core's names, on the bus as they are
 from plant_sim.params import RigConfig
 
 __all__ = [
@@ -30,12 +31,7 @@ RESTART_RUN = 50
 # volts) but below what overflows the estimators: one reading of 1e300 Pa used to leave a rig's
 # estimates at -1e295 for good. A value outside is rejected as bad-value.
 SAMPLE_LIMITS = {"ug": 1e3, "x1": 10.0, "x3": 1e9, "x4": 1e9, "x5": 0.1}
-GRADES = ("health", "sub-health", "average", "deterioration", "fault")
 STATUSES = ("converging", "ok", "stale", "bad-input")
-PARAM_NAMES = (
-    "m", "B_fv", "f_c", "K_t", "inv_beta_e", "CdW_sqrt_rho", "C_ip", "C_ep",
-    "two_zeta_omega", "omega_sv2", "K_sv_omega_sv2", "K_sv",
-)
 RIG_ID_RE = re.compile(r"[A-Za-z0-9_-]{1,64}")
 _NS_RE = re.compile(r"[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*")
 

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hydromon.contract import PARAM_NAMES
+from .names import PARAM_NAMES
 from plant_sim.degradation import degrade
 from plant_sim.params import RigConfig
 from plant_sim.profiles import PaperIdentification

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from hydromon.contract import PARAM_NAMES
+from .names import PARAM_NAMES
 from plant_sim.model import orifice_z
 from plant_sim.params import RigConfig
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hydromon.contract import PARAM_NAMES
+from .names import PARAM_NAMES
 from plant_sim.noise import CHANNELS
 from plant_sim.params import RigConfig
 

@@ -17,7 +17,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
 
-from hydromon.contract import GRADES, PARAM_NAMES
+from .names import GRADES, PARAM_NAMES
 
 __all__ = ["ParamRange", "Ranges", "RangeArrays", "grade_name", "DEFAULT_RANGES_PATH", "PAPER_TABLE3_PATH"]
 

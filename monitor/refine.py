@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 from scipy.optimize import least_squares
 
-from hydromon.contract import PARAM_NAMES
+from .names import PARAM_NAMES
 from monitor.ident_options import IdentOptions
 from monitor.outlier_gate import gated
 from plant_sim.model import derivatives

@@ -32,3 +32,26 @@ def test_the_ranges_data_is_installed():
     data = set((ROOT / "monitor" / "data").glob("*.json"))
     assert {p.name for p in data} >= {"table3.json", "default_ranges.json"}
     assert data <= shipped, data - shipped
+
+
+def test_the_core_never_imports_the_shell():
+    # DESIGN.md 2: monitor/ and plant_sim/ are the functional core; hydromon/ (zenoh, MCAP,
+    # files, CLI, the bus contract) is built on them, never the other way round
+    import ast
+
+    offenders = []
+    for top in ("plant_sim", "monitor"):
+        for path in (ROOT / top).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                         else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
+                offenders += [f"{path.relative_to(ROOT)}: {n}" for n in names
+                              if n.split(".")[0] in ("hydromon", "zenoh", "mcap")]
+    assert not offenders, offenders
+
+
+def test_the_parameter_names_are_the_plants_identified_ones():
+    from monitor.names import PARAM_NAMES
+    from plant_sim.params import PlantParams
+
+    assert tuple(PlantParams().identified()) == PARAM_NAMES
