@@ -126,3 +126,27 @@ def test_a_stepped_command_is_followed_not_smeared():
     for k in ("B_fv", "f_c"):
         assert abs(ref.params[k] - true[k]) <= 3 * ref.std_errors[k], (k, ref.params[k], true[k], ref.std_errors[k])
     assert abs(ref.params["B_fv"] / true["B_fv"] - 1) < 0.03
+
+
+def test_a_fit_that_ends_where_the_error_is_not_smooth_is_not_ok():
+    # a review's rig (spread_fleet(20) rig-0015: paper-var, severity 0.79, realistic noise, 30 s):
+    # the fit said ok with standard errors up to 40,000 times too small (C_d W / sqrt(rho) 41,000
+    # SE from its true value, K_sv omega^2 1.5 million); never a confident wrong answer
+    from hydromon.fleetfile import spread_fleet
+    from hydromon.simnode import select_rig
+    from plant_sim.profiles import parse_profile
+    from plant_sim.simulate import simulate
+
+    one = select_rig(spread_fleet(20).with_overrides(noise="realistic"), "rig-0015")
+    r = one.rigs[0]
+    run = simulate(parse_profile(r.profile), 30.0, r.plant(), one.config, None, noise_model("realistic"),
+                   one.seeds()[0])
+    fleet = Fleet()
+    fleet.add_rig("a")
+    fleet.update(np.zeros(len(run.samples), dtype=np.int64), run.samples)
+    ref = refine(run.samples, one.config, fleet.estimate(0).params)
+    true = r.plant().identified()
+    z = {k: abs(ref.params[k] - true[k]) / ref.std_errors[k] for k in REFINED}
+    assert not ref.ok or max(z.values()) < 4.0, (ref.message, z)
+    if not ref.ok:
+        assert "not smooth" in ref.message and all(math.isinf(ref.std_errors[k]) for k in REFINED)
