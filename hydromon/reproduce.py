@@ -127,8 +127,10 @@ def _table2(noise: str, seeds: int, config: RigConfig, refined: bool = False):
                 row["refined_mean_abs_rel_err"] = float(np.mean(err) / true[k])
             else:
                 row["refined_mean_abs_err"] = float(np.mean(err))
-            row["refined_within_3se"] = int(np.sum(err <= 3 * r_se))
-            row["refined_ok"] = int(sum(r.ok for r in refined_runs))
+            ok = np.array([r.ok for r in refined_runs])
+            # a failed fit has no standard error (inf): it covers nothing, it is counted apart
+            row["refined_within_3se"] = int(np.sum((err <= 3 * r_se) & ok))
+            row["refined_ok"] = int(ok.sum())
         rows.append(row)
     return rows, hist
 
@@ -263,7 +265,9 @@ def render(rep: Reproduction, console=None) -> None:
                 if multi:
                     m = (f"{100 * r['refined_mean_abs_rel_err']:.3f} %" if "refined_mean_abs_rel_err" in r
                          else f"{r['refined_mean_abs_err']:.3g}")
-                    cells.append(f"{m} ({r['refined_within_3se']}/{rep.seeds})")
+                    failed = rep.seeds - r["refined_ok"]
+                    cells.append(f"{m} ({r['refined_within_3se']}/{rep.seeds}"
+                                 + (f", {failed} failed)" if failed else ")"))
         t.add_row(*cells)
     console.print(t)
     console.print("errors are relative to the true value; C_ep is 0, so its error is the value itself")

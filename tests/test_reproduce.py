@@ -210,3 +210,24 @@ def test_reproduce_refine_adds_the_whole_record_fit(capsys):
     assert "refined" not in to_json(reproduce(calibration_runs=0))["table2"][0]
     assert main(["reproduce", "--noise", "realistic", "--seeds", "2", "--refine", "--calibration-runs", "0"]) == 0
     assert "refined: the whole-record" in capsys.readouterr().out
+
+
+def test_a_failed_refinement_covers_nothing(monkeypatch, capsys):
+    # a failed fit has infinite standard errors: counted "within 3 SE" it made any failure look covered
+    import math
+
+    from hydromon import reproduce as rp
+    from monitor.refine import Refinement
+
+    def failed(samples, config, start, **kw):
+        return Refinement(dict(start), {k: math.inf for k in start}, False, "not smooth", 0, {})
+
+    monkeypatch.setattr(rp, "refine", failed)
+    rep = rp.reproduce(noise="realistic", seeds=2, calibration_runs=0, refined=True)
+    b = {r["name"]: r for r in rp.to_json(rep)["table2"]}["B_fv"]
+    assert b["refined_ok"] == 0 and b["refined_within_3se"] == 0
+    from rich.console import Console
+
+    console = Console(width=400, record=True)
+    rp.render(rep, console)
+    assert "(0/2, 2 failed)" in console.export_text()
