@@ -151,7 +151,8 @@ def make_golden(golden: Golden, path, *, rate: float = 20.0, namespace: str = DE
     with open_session("peer", multicast=False) as session:
         rec = Worker("recorder", lambda: record(session, path, namespace=namespace, stop_event=stop_rec))
         mon = Worker("monitor", lambda: run_monitor(session, namespace=namespace, node_name=_NODE,
-                                                     stop_event=stop_mon, core=core))
+                                                     stop_event=stop_mon, core=core,
+                                                     stale_after_s=None))  # clock-driven: not golden
         try:
             rec.start()
             mon.start()

@@ -171,7 +171,8 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
     # this session listens and the monitor process connects to it, so the two meet as soon as
     # the process opens its session (not at one of zenoh's connect retries, every 4 s at most)
     with open(log_path, "wb") as log, open_session("peer", listen=[ep]) as s:
-        proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--connect", ep, "--node", "bad-in"],
+        proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--connect", ep, "--node", "bad-in",
+                                 "--stale-after", "600"],
                                 stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 env={**os.environ, "PYTHONUNBUFFERED": "1"})
         try:

@@ -199,7 +199,8 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
         result = {}
         with open_session("client", connect=[ep]) as s:
             mon = threading.Thread(target=lambda: result.update(core=run_monitor(
-                s, node_name="e2e-replay", stop_event=stop, on_health=lambda k, p: replayed.append((k, p)))),
+                s, node_name="e2e-replay", stop_event=stop, on_health=lambda k, p: replayed.append((k, p)),
+                stale_after_s=None)),
                 daemon=True)
             mon.start()
             try:

@@ -533,7 +533,8 @@ def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
             open_session("peer", connect=[ep]) as obs_s:
         sub = obs_s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(100000))
         stop, result = threading.Event(), {}
-        mon = threading.Thread(target=lambda: result.update(core=run_monitor(mon_s, stop_event=stop, node_name="m1")),
+        mon = threading.Thread(target=lambda: result.update(core=run_monitor(mon_s, stop_event=stop, node_name="m1",
+                                                                                     stale_after_s=None)),
                                daemon=True)
         mon.start()
         try:
@@ -620,7 +621,7 @@ def test_a_monitor_in_namespace_site2_on_loopback_ignores_hydro_traffic():
         hydro_sub = obs_s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(10000))
         stop, core = threading.Event(), MonitorCore("site2")
         mon = threading.Thread(target=lambda: run_monitor(mon_s, namespace="site2", stop_event=stop, node_name="m2",
-                                                          core=core), daemon=True)
+                                                          core=core, stale_after_s=None), daemon=True)
         mon.start()
         try:
             wait_for(lambda: any(r.ok is not None for r in sim_s.liveliness().get("site2/monitor/m2", timeout=1.0)),
@@ -700,7 +701,7 @@ def test_a_monitor_started_late_asks_the_running_rigs_for_their_configs():
 
         core, recording = MonitorCore(), _RepliesSeen(mon_s)
         mon = threading.Thread(target=lambda: result.update(core=run_monitor(recording, stop_event=stop_mon,
-                                                                             core=core)), daemon=True)
+                                                                             core=core, stale_after_s=None)), daemon=True)
         try:
             wait_for(configs_out, 60, "the sim's configs")
             mon.start()  # subscribes only now: the configs can reach it only as replies to its query

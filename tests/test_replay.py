@@ -102,7 +102,7 @@ def test_bus_replay_into_the_monitor_gives_the_direct_health_on_every_pass(recor
     with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as rep_s:
         stop, result = threading.Event(), {}
         mon = threading.Thread(target=lambda: result.update(core=run_monitor(
-            mon_s, stop_event=stop, on_health=lambda k, p: got.append((k, p)))), daemon=True)
+            mon_s, stop_event=stop, on_health=lambda k, p: got.append((k, p)), stale_after_s=None)), daemon=True)
         mon.start()
         try:
             deadline = time.monotonic() + 30
