@@ -58,7 +58,9 @@ from operator import attrgetter, itemgetter
 import numpy as np
 import orjson
 
-from hydromon.contract import DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, _check_ns, health_key, parse_rig_key, valid_rig_id
+from hydromon.contract import (
+    DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, _check_ns, health_key, parse_rig_key, sample_key, valid_rig_id,
+)
 from hydromon.edge import REJECT_REASONS, VALUE_LIMITS, Rejected, decode_json, parse_config, parse_sample, sim_samples
 from hydromon.health_json import health_payloads
 from monitor.pipeline import Fleet
@@ -86,6 +88,7 @@ class MonitorCounters:
     ignored: int = 0           # health messages (our own output kind)
     health: int = 0            # health messages produced
     stale_resent: int = 0      # latest health re-sent stale for a silent rig (MonitorCore.stale; not in as_dict)
+    forgotten: int = 0         # rigs forgotten after a long silence (MonitorCore.forget; not in as_dict)
 
     @property
     def dropped_seq(self) -> int:
@@ -172,6 +175,7 @@ class MonitorCore:
         self._health_keys: list[str] = []          # per row
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
         self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
+        self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
         self._cur = 0  # index in the current process() call of the message being taken one by one
         # sequence state per row (arrays, so a batch of regular samples is checked at once)
         self._last = np.full(16, -1, dtype=np.int64)   # last seq taken; -1 = none yet
@@ -290,7 +294,7 @@ class MonitorCore:
         rig = self.rigs.get(rig_id)
         if rig is None:
             config = self.configs.get(rig_id)
-            row = self.fleet.add_rig(rig_id, config)
+            row = self.fleet.add_rig(rig_id, config)  # a forgotten rig's row, or a new one
             if row >= len(self._last):
                 grow = len(self._last)
                 self._last = np.concatenate([self._last, np.full(grow, -1, dtype=np.int64)])
@@ -302,8 +306,47 @@ class MonitorCore:
                 self._back_seq = np.concatenate([self._back_seq, np.full(grow, -1, dtype=np.int64)])
                 self._back_warned = np.concatenate([self._back_warned, np.zeros(grow, dtype=np.bool_)])
             rig = self.rigs[rig_id] = _Rig(row, config)
-            self._health_keys.append(health_key(rig_id, self.namespace))
+            if row < len(self._health_keys):
+                self._health_keys[row] = health_key(rig_id, self.namespace)
+            else:
+                self._health_keys.append(health_key(rig_id, self.namespace))
+            self._forgotten.pop(rig_id, None)  # back: its kept config is in use again
         return rig
+
+    def forget(self, rig_ids: Iterable[str]) -> list[str]:
+        """Forget these rigs (silent ones: the node decides when): their estimates, latest health
+        and seq state go, and their rows are reused by the next new rigs, so a plant whose rig ids
+        come and go never reaches ``max_rigs`` with rigs long gone. A forgotten rig that comes back
+        starts afresh, as a new rig, with the config it last sent (configs are published once and
+        on change); the configs of forgotten rigs are kept up to ``max_rigs`` in all, the oldest
+        dropped first. Call between :meth:`process` calls. Returns the ids forgotten."""
+        done = []
+        for rig_id in rig_ids:
+            rig = self.rigs.pop(rig_id, None)
+            if rig is None:
+                continue
+            r = rig.row
+            self.fleet.remove_rig(rig_id)
+            self.latest.pop(rig_id, None)
+            self._known.pop(sample_key(rig_id, self.namespace), None)
+            self._last[r], self._n[r], self._gap[r], self._bad[r] = -1, 0, -1, False
+            self._clamp_warned[r] = False
+            self._back_n[r], self._back_seq[r], self._back_warned[r] = 0, -1, False
+            if rig_id in self.configs:
+                self._forgotten[rig_id] = None
+            done.append(rig_id)
+        self.counters.forgotten += len(done)
+        return done
+
+    def _config_room(self) -> bool:
+        """Room for one more rig's config: the oldest config of a forgotten rig makes room."""
+        if len(self.configs) < self.max_rigs:
+            return True
+        if self._forgotten:
+            oldest = next(iter(self._forgotten))
+            del self._forgotten[oldest], self.configs[oldest]
+            return True
+        return False
 
     def _on_config(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
         try:
@@ -317,7 +360,7 @@ class MonitorCore:
             self._reject(exc.reason, key, exc.detail, self.rigs.get(rig_id))
             return
         if rig_id not in self.configs and rig_id not in self.rigs and \
-                max(len(self.configs), len(self.rigs)) >= self.max_rigs:
+                (len(self.rigs) >= self.max_rigs or not self._config_room()):
             self._reject("too-many-rigs", key, self._full())
             return
         self.counters.configs += 1

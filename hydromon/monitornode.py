@@ -84,38 +84,58 @@ class RateLimitedLog:
 
 
 class SilenceWatch:
-    """Rigs that have sent no sample for ``after`` [s]: ``check(core, now)`` returns their latest
-    health re-sent as ``stale`` (``MonitorCore.stale``), once per silence.
+    """Rigs that have sent no sample for a while, by the node's clock ``now`` [s].
+
+    ``check(core, now)`` returns the latest health of rigs silent for ``after`` [s] re-sent as
+    ``stale`` (``MonitorCore.stale``), once per silence (None: never). ``forget_due(core, now)``
+    returns the ids of rigs silent for ``forget_after`` [s] (None: never), for
+    ``MonitorCore.forget``.
 
     Health is computed from samples, so a rig that stops publishing (its PC off, its cable out)
     would otherwise keep its last ``ok`` for good: on the health query and on every dashboard
-    that shows the latest message. The check compares each rig's last seq with the one it had at
-    the previous check (one array comparison for the whole fleet); ``now`` is the node's clock.
+    that shows the latest message. Each call compares each rig's last seq with the one it had at
+    the previous call (one array comparison for the whole fleet).
     """
 
-    def __init__(self, after: float):
-        if not after > 0:
-            raise ValueError(f"stale after {after!r} s must be > 0")
-        self.after = float(after)
+    def __init__(self, after: float | None, forget_after: float | None = None):
+        for name, v in (("stale after", after), ("forget after", forget_after)):
+            if v is not None and not v > 0:
+                raise ValueError(f"{name} {v!r} s must be > 0")
+        if after is not None and forget_after is not None and forget_after <= after:
+            raise ValueError(f"forget after {forget_after!r} s must be longer than stale after {after!r} s")
+        self.after = None if after is None else float(after)
+        self.forget_after = None if forget_after is None else float(forget_after)
         self._seqs = np.empty(0, dtype=np.int64)
         self._since = np.empty(0)
         self._told = np.empty(0, dtype=np.bool_)
 
-    def check(self, core: MonitorCore, now: float) -> list[tuple[str, bytes]]:
+    def _observe(self, core: MonitorCore, now: float) -> None:
         seqs = core.last_seqs()
         new = len(seqs) - len(self._seqs)
         if new > 0:  # rigs seen since the last check: silent from now at the earliest
             self._seqs = np.concatenate([self._seqs, np.full(new, -2, dtype=np.int64)])
             self._since = np.concatenate([self._since, np.full(new, now)])
             self._told = np.concatenate([self._told, np.zeros(new, dtype=np.bool_)])
-        moved = seqs != self._seqs
+        moved = seqs != self._seqs  # a forgotten rig's row (seq back to -1) counts as moved
         self._since[moved], self._told[moved], self._seqs = now, False, seqs
+
+    def check(self, core: MonitorCore, now: float) -> list[tuple[str, bytes]]:
+        self._observe(core, now)
+        if self.after is None:
+            return []
         due = ~self._told & (now - self._since >= self.after)
         if not due.any():
             return []
         self._told |= due
         ids = core.fleet.ids
         return core.stale([ids[r] for r in np.flatnonzero(due).tolist()])
+
+    def forget_due(self, core: MonitorCore, now: float) -> list[str]:
+        self._observe(core, now)
+        if self.forget_after is None:
+            return []
+        ids = core.fleet.ids
+        return [ids[r] for r in np.flatnonzero(now - self._since >= self.forget_after).tolist() if ids[r]]
 
 
 _RIG_PATTERN_RE = re.compile(r"\*|\$\*|[A-Za-z0-9_$*-]{1,64}")
@@ -140,7 +160,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 poll_s: float = 0.005, on_health: Callable[[str, bytes], None] | None = None,
                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
                 config_query_s: float = 5.0, clock=time.monotonic, rigs: str = "*",
-                stale_after_s: float | None = 2.0) -> MonitorCore:
+                stale_after_s: float | None = 2.0, forget_after_s: float | None = None) -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
 
     Parameters
@@ -171,6 +191,10 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     stale_after_s : float or None
         A rig that has sent no sample for this long [s] has its latest health re-sent with
         status ``stale`` (:class:`SilenceWatch`; None: never).
+    forget_after_s : float or None
+        A rig that has sent no sample for this long [s] is forgotten (``MonitorCore.forget``:
+        its estimates, latest health and row go; it starts afresh if it comes back), and logged.
+        None: never.
 
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
@@ -181,7 +205,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     warm_up()  # compile before subscribing: the first samples must not queue behind the compiler
     stop = stop_event if stop_event is not None else threading.Event()
     deadline = None if duration is None else clock() + duration
-    watch = None if stale_after_s is None else SilenceWatch(stale_after_s)
+    watch = None if stale_after_s is None and forget_after_s is None else SilenceWatch(stale_after_s, forget_after_s)
     watch_every = 0.25 if stale_after_s is None else min(0.25, stale_after_s / 4)
     flush_log = getattr(core.on_reject, "flush", None)  # a RateLimitedLog's due counts
 
@@ -248,6 +272,9 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 now = clock()
                 if watch is not None:
                     publish(watch.check(core, now))
+                    for rig_id in core.forget(watch.forget_due(core, now)):
+                        log.warning("rig %s: forgotten after %g s without a sample (its next sample starts "
+                                    "it afresh)", rig_id, forget_after_s)
                 if flush_log is not None:
                     flush_log()
                 next_watch = now + watch_every

@@ -10,6 +10,8 @@ and a test pins them equal.
 
 from __future__ import annotations
 
+import heapq
+
 import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -164,8 +166,9 @@ class Fleet:
         self.grade_margin = float(grade_margin)
         self._k = Kernels(self.options, 1.0 / self.sample_rate)
         self._ra = self.ranges.to_arrays(grade_margin)
-        self.ids: list[str] = []
+        self.ids: list[str] = []  # by row; "" for a row freed by remove_rig (no valid rig id is empty)
         self.index: dict[str, int] = {}
+        self._free: list[int] = []  # rows freed by remove_rig, reused lowest first (a heap)
         capacity = max(1, capacity)
         self.states = np.zeros((capacity, STATE_SIZE))
         self.consts = np.zeros((capacity, RIG_CONST_SIZE))
@@ -198,16 +201,31 @@ class Fleet:
         config = config or RigConfig()
         if abs(config.sample_rate - self.sample_rate) > 1e-9:
             raise ValueError(f"rig {rig_id!r} samples at {config.sample_rate} Hz; the fleet runs at {self.sample_rate} Hz")
-        i = len(self.ids)
-        if i == self.states.shape[0]:
-            self._grow()
-        self.ids.append(rig_id)
+        if self._free:
+            i = heapq.heappop(self._free)
+            self.ids[i] = rig_id
+        else:
+            i = len(self.ids)
+            if i == self.states.shape[0]:
+                self._grow()
+            self.ids.append(rig_id)
         self.index[rig_id] = i
         self.states[i] = new_state(self._k.hyper)
         self.consts[i] = rig_constants(config)
         self.counts[i] = 0
         self.phase[i] = eval_phase(rig_id, self.eval_every) if self.stagger else 0
         self.bands[i] = -1
+        return i
+
+    def remove_rig(self, rig_id: str) -> int:
+        """Forget a rig: its row is freed (its state cleared) for the next :meth:`add_rig`, so a
+        fleet whose rigs come and go stays the size of the rigs it holds. Returns the row."""
+        i = self.index.pop(rig_id)
+        self.ids[i] = ""
+        self.states[i] = 0.0
+        self.counts[i] = 0
+        self.bands[i] = -1
+        heapq.heappush(self._free, i)
         return i
 
     def _grow(self) -> None:

@@ -30,6 +30,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--stale-after", type=float, default=2.0, metavar="S",
                         help="a rig that sends no sample for S seconds has its latest health re-sent with "
                              "status stale (default 2)")
+    parser.add_argument("--forget-after", type=float, default=None, metavar="S",
+                        help="a rig that sends no sample for S seconds is forgotten: its estimates and latest "
+                             "health are dropped and its place goes to new rigs, so rig ids that come and go "
+                             "never fill --max-rigs; if it comes back it starts afresh (default: never)")
     add_ranges_argument(parser)
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads for the estimators when many samples arrive at once (rigs split "
@@ -48,6 +52,11 @@ def run(args) -> int:
     _checks.at_least("--threads", args.threads, 1)
     _checks.at_least("--max-rigs", args.max_rigs, 1)
     _checks.positive("--stale-after", args.stale_after)
+    if args.forget_after is not None:
+        _checks.positive("--forget-after", args.forget_after)
+        if args.forget_after <= args.stale_after:
+            raise ValueError(f"--forget-after {args.forget_after:g} s must be longer than --stale-after "
+                             f"{args.stale_after:g} s (a rig is stale before it is forgotten)")
     liveliness_key(args.node, args.namespace)  # the node name and the namespace
     try:
         rig_pattern(args.rigs)
@@ -63,7 +72,8 @@ def run(args) -> int:
             print(f"hydromon monitor: node {args.node!r} on {args.namespace}/rig/{args.rigs}/sample",
                   file=sys.stderr, flush=True)
             run_monitor(session, namespace=args.namespace, node_name=args.node, stop_event=stop,
-                        duration=args.duration, core=core, rigs=args.rigs, stale_after_s=args.stale_after)
+                        duration=args.duration, core=core, rigs=args.rigs, stale_after_s=args.stale_after,
+                        forget_after_s=args.forget_after)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -72,7 +82,8 @@ def run(args) -> int:
     print(f"hydromon monitor: {len(core.rigs)} rig(s), {c.accepted} samples, {c.health} health messages; "
           f"rejected: {rejected}; dropped seq {c.dropped_seq}, gaps {c.gaps} ({c.missing} samples missing), "
           f"restarts {c.restarts}" + (f"; silent rigs' health re-sent stale {c.stale_resent} time(s)"
-                                      if c.stale_resent else ""), file=sys.stderr)
+                                      if c.stale_resent else "")
+          + (f"; {c.forgotten} silent rig(s) forgotten" if c.forgotten else ""), file=sys.stderr)
     line = x1_clamped_line(core)
     if line:
         print(f"hydromon monitor: {line}", file=sys.stderr)
