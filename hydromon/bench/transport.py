@@ -45,7 +45,13 @@ def _transport_pub(endpoint: str, seconds: float, n_keys: int, out) -> None:
         pubs = [session.declare_publisher(f"hydro/rig/rig-{i:04d}/sample", encoding=JSON,
                                           congestion_control=zenoh.CongestionControl.BLOCK)
                 for i in range(n_keys)]
-        time.sleep(1.0)  # let the subscriber's interest arrive
+        # the subscriber's interest must have arrived, or the first puts go nowhere and its
+        # window outlasts ours (a fixed 1 s sleep assumed it always does)
+        deadline = time.monotonic() + 30.0
+        while not (pubs[0].matching_status.matching and pubs[-1].matching_status.matching):
+            if time.monotonic() > deadline:
+                raise RuntimeError("no subscriber matched the transport publisher in 30 s")
+            time.sleep(0.01)
         payloads = [orjson.dumps({"seq": k, "t": k * 0.01, "ug": 2.0 + 0.1 * k % 1, "x1": 0.01234567,
                                   "x3": 6123456.7, "x4": 5987654.3, "x5": 1.2345e-5}) for k in range(1000)]
         t0 = time.perf_counter()
