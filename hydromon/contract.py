@@ -18,7 +18,7 @@ from plant_sim.params import RigConfig
 __all__ = [
     "Sample", "Health", "RigConfig", "SAMPLE_COLUMNS", "GRADES", "STATUSES", "PARAM_NAMES", "SEQ_MAX", "RESTART_RUN", "SAMPLE_LIMITS",
     "RIG_ID_RE", "valid_rig_id", "sample_key", "health_key", "config_key", "liveliness_key",
-    "parse_rig_key", "DEFAULT_NAMESPACE",
+    "parse_rig_key", "split_rig_key", "DEFAULT_NAMESPACE",
 ]
 
 DEFAULT_NAMESPACE = "hydro"
@@ -71,15 +71,25 @@ def liveliness_key(node: str, ns: str = DEFAULT_NAMESPACE) -> str:
     return f"{_check_ns(ns)}/monitor/{node}"
 
 
-def parse_rig_key(key: str, ns: str = DEFAULT_NAMESPACE) -> tuple[str, str] | None:
-    """``(rig_id, leaf)`` for a key ``<ns>/rig/<id>/<leaf>`` of the contract, else None."""
+def split_rig_key(key: str, ns: str = DEFAULT_NAMESPACE) -> tuple[str, str] | str:
+    """``(rig_id, leaf)`` for a key ``<ns>/rig/<id>/<leaf>`` of the contract, else why not: a
+    message for the rejection log, starting with ``bad-key:`` (not a rig key of ``ns``) or
+    ``bad-rig-id:`` (the layout, but an id outside the contract's)."""
     prefix = f"{ns}/rig/"
     if not key.startswith(prefix):
-        return None
+        return f"bad-key: not under {prefix}"
     parts = key[len(prefix):].split("/")
-    if len(parts) != 2 or parts[1] not in ("sample", "health", "config") or not valid_rig_id(parts[0]):
-        return None
+    if len(parts) != 2 or parts[1] not in ("sample", "health", "config"):
+        return "bad-key: expected <ns>/rig/<id>/sample, config or health"
+    if not valid_rig_id(parts[0]):
+        return f"bad-rig-id: {parts[0][:80]!r} is not 1-64 chars of [A-Za-z0-9_-]"
     return parts[0], parts[1]
+
+
+def parse_rig_key(key: str, ns: str = DEFAULT_NAMESPACE) -> tuple[str, str] | None:
+    """``(rig_id, leaf)`` for a key ``<ns>/rig/<id>/<leaf>`` of the contract, else None."""
+    parts = split_rig_key(key, ns)
+    return None if isinstance(parts, str) else parts
 
 
 class _Payload(BaseModel):

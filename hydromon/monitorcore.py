@@ -59,7 +59,7 @@ import numpy as np
 import orjson
 
 from hydromon.contract import (
-    DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, _check_ns, health_key, parse_rig_key, sample_key, valid_rig_id,
+    DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, _check_ns, health_key, parse_rig_key, sample_key, split_rig_key,
 )
 from hydromon.edge import REJECT_REASONS, VALUE_LIMITS, Rejected, decode_json, parse_config, parse_sample, sim_samples
 from hydromon.health_json import health_payloads
@@ -170,7 +170,6 @@ class MonitorCore:
         self.rigs: dict[str, _Rig] = {}
         self.configs: dict[str, RigConfig] = {}   # latest valid config per rig id
         self.latest: dict[str, bytes] = {}        # latest health payload per rig id
-        self._prefix = f"{namespace}/rig/"
         self._graded = self.fleet.graded
         self._health_keys: list[str] = []          # per row
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
@@ -539,19 +538,17 @@ class MonitorCore:
                 return
             self._take(rig.row, vals, out)
             return
-        prefix = self._prefix
-        if not key.startswith(prefix):
-            self._reject("bad-key", key, f"not under {prefix}")
-            return
-        parts = key[len(prefix):].split("/")
-        if len(parts) != 2 or parts[1] not in ("sample", "config", "health"):
-            self._reject("bad-key", key, "expected <ns>/rig/<id>/sample or config")
+        parts = split_rig_key(key, self.namespace)
+        if isinstance(parts, str):
+            reason, detail = parts.split(": ", 1)
+            if reason == "bad-rig-id" and key.endswith("/health"):
+                self.counters.ignored += 1  # our own output kind, whatever the id
+            else:
+                self._reject(reason, key, detail)
             return
         rig_id, leaf = parts
         if leaf == "health":
             self.counters.ignored += 1
-        elif not valid_rig_id(rig_id):
-            self._reject("bad-rig-id", key, f"{rig_id[:80]!r} is not 1-64 chars of [A-Za-z0-9_-]")
         elif leaf == "sample":
             self._on_sample(rig_id, key, payload, out)
         else:
