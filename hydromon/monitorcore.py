@@ -111,6 +111,19 @@ class _Rig:
     config: RigConfig | None
 
 
+# per-row sequence state of MonitorCore: (attribute, value of a row with no rig yet, dtype); one
+# table for creating, growing and (after MonitorCore.forget) resetting the rows
+_ROW_STATE = (
+    ("_last", -1, np.int64),           # last seq taken; -1 = none yet
+    ("_n", 0, np.int64),               # samples since the estimates (re)started
+    ("_gap", -1, np.int64),            # samples after the last gap; -1 = none pending
+    ("_bad", False, np.bool_),         # a sample-key message rejected since the last health
+    ("_clamp_warned", False, np.bool_),  # warned of its x1 beyond a chamber's end
+    ("_back_n", 0, np.int64),          # samples in a row below the last seq (a restart?)
+    ("_back_seq", -1, np.int64),       # the last of them
+    ("_back_warned", False, np.bool_),  # warned of a seq going back
+)
+
 _ROW = attrgetter("row")
 _SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
@@ -177,14 +190,8 @@ class MonitorCore:
         self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
         self._cur = 0  # index in the current process() call of the message being taken one by one
         # sequence state per row (arrays, so a batch of regular samples is checked at once)
-        self._last = np.full(16, -1, dtype=np.int64)   # last seq taken; -1 = none yet
-        self._n = np.zeros(16, dtype=np.int64)         # samples since the estimates (re)started
-        self._gap = np.full(16, -1, dtype=np.int64)    # samples after the last gap; -1 = none pending
-        self._bad = np.zeros(16, dtype=np.bool_)       # a sample-key message rejected since the last health
-        self._clamp_warned = np.zeros(16, dtype=np.bool_)  # warned of its x1 beyond a chamber's end
-        self._back_n = np.zeros(16, dtype=np.int64)    # samples in a row below the last seq (a restart?)
-        self._back_seq = np.full(16, -1, dtype=np.int64)  # the last of them
-        self._back_warned = np.zeros(16, dtype=np.bool_)  # warned of a seq going back
+        for name, value, dtype in _ROW_STATE:
+            setattr(self, name, np.full(16, value, dtype=dtype))
         self._clear()
 
     # -- batch of accepted samples --------------------------------------------------------
@@ -296,14 +303,8 @@ class MonitorCore:
             row = self.fleet.add_rig(rig_id, config)  # a forgotten rig's row, or a new one
             if row >= len(self._last):
                 grow = len(self._last)
-                self._last = np.concatenate([self._last, np.full(grow, -1, dtype=np.int64)])
-                self._n = np.concatenate([self._n, np.zeros(grow, dtype=np.int64)])
-                self._gap = np.concatenate([self._gap, np.full(grow, -1, dtype=np.int64)])
-                self._bad = np.concatenate([self._bad, np.zeros(grow, dtype=np.bool_)])
-                self._clamp_warned = np.concatenate([self._clamp_warned, np.zeros(grow, dtype=np.bool_)])
-                self._back_n = np.concatenate([self._back_n, np.zeros(grow, dtype=np.int64)])
-                self._back_seq = np.concatenate([self._back_seq, np.full(grow, -1, dtype=np.int64)])
-                self._back_warned = np.concatenate([self._back_warned, np.zeros(grow, dtype=np.bool_)])
+                for name, value, dtype in _ROW_STATE:
+                    setattr(self, name, np.concatenate([getattr(self, name), np.full(grow, value, dtype=dtype)]))
             rig = self.rigs[rig_id] = _Rig(row, config)
             if row < len(self._health_keys):
                 self._health_keys[row] = health_key(rig_id, self.namespace)
@@ -328,9 +329,8 @@ class MonitorCore:
             self.fleet.remove_rig(rig_id)
             self.latest.pop(rig_id, None)
             self._known.pop(sample_key(rig_id, self.namespace), None)
-            self._last[r], self._n[r], self._gap[r], self._bad[r] = -1, 0, -1, False
-            self._clamp_warned[r] = False
-            self._back_n[r], self._back_seq[r], self._back_warned[r] = 0, -1, False
+            for name, value, _ in _ROW_STATE:
+                getattr(self, name)[r] = value
             if rig_id in self.configs:
                 self._forgotten[rig_id] = None
             done.append(rig_id)
