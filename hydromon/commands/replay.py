@@ -18,10 +18,15 @@ def KERNELS(args) -> bool:  # noqa: N802 (read by hydromon.cli like the other co
     return bool(args.direct)
 
 
+# the bus replay's defaults; the options stay None when not given, so --direct can refuse them
+DEFAULT_RATE = 1.0
+DEFAULT_WAIT_S = 3.0
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE", help="an MCAP recording")
     parser.add_argument("--rate", type=float, default=None,
-                        help="speed relative to the recording, 0 = as fast as possible (default 1)")
+                        help=f"speed relative to the recording, 0 = as fast as possible (default {DEFAULT_RATE:g})")
     parser.add_argument("--keys", action="append", default=None, metavar="KEYEXPR",
                         help="replay only topics matching this zenoh key expression, e.g. 'hydro/rig/*/sample' "
                         "('*' one chunk, '**' any chunks; repeatable; default: everything, recorded verdicts "
@@ -33,7 +38,7 @@ def add_arguments(parser) -> None:
                         help="replay this many seconds of the recording")
     parser.add_argument("--loop", action="store_true", help="play the window again and again until Ctrl-C")
     parser.add_argument("--wait", type=float, default=None, metavar="S",
-                        help="wait up to S seconds for a subscriber before sending (default 3)")
+                        help=f"wait up to S seconds for a subscriber before sending (default {DEFAULT_WAIT_S:g})")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--direct", action="store_true",
                         help="no bus: run the monitor in-process over the recording as fast as possible and "
@@ -62,8 +67,6 @@ def check_args(args) -> None:
         if args.out:
             _checks.writable_file("--out", args.out)
     else:
-        args.rate = 1.0 if args.rate is None else args.rate
-        args.wait = 3.0 if args.wait is None else args.wait
         _checks.non_negative("--rate", args.rate)
         _checks.non_negative("--wait", args.wait, unit="s")
         if args.out:
@@ -125,14 +128,15 @@ def run(args) -> int:
     total = max(0.0, (last - first) / 1e9 - (args.start or 0.0))
     if args.duration is not None:
         total = min(total, args.duration)
+    rate = DEFAULT_RATE if args.rate is None else args.rate
+    wait_s = DEFAULT_WAIT_S if args.wait is None else args.wait
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with session_from_args(args) as session:
             if args.quiet:
-                stats = replay_bus(session, args.file, rate=args.rate, keys=args.keys, start=args.start,
-                                   duration=args.duration, loop=args.loop, stop_event=stop,
-                                   wait_s=args.wait)
+                stats = replay_bus(session, args.file, rate=rate, keys=args.keys, start=args.start,
+                                   duration=args.duration, loop=args.loop, stop_event=stop, wait_s=wait_s)
             else:
                 from rich.console import Console
                 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -140,8 +144,8 @@ def run(args) -> int:
                 with Progress(TextColumn("replay"), BarColumn(), TextColumn("{task.completed:.1f}/{task.total:.1f} s"),
                               TimeElapsedColumn(), console=Console(stderr=True)) as bar:
                     task = bar.add_task("replay", total=total)
-                    stats = replay_bus(session, args.file, rate=args.rate, keys=args.keys, start=args.start,
-                                       duration=args.duration, loop=args.loop, stop_event=stop, wait_s=args.wait,
+                    stats = replay_bus(session, args.file, rate=rate, keys=args.keys, start=args.start,
+                                       duration=args.duration, loop=args.loop, stop_event=stop, wait_s=wait_s,
                                        progress=lambda done, total: bar.update(task, completed=done, total=total))
     finally:
         for sig, handler in previous.items():
