@@ -11,7 +11,6 @@ and a test pins them equal.
 from __future__ import annotations
 
 import heapq
-
 import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass

@@ -102,8 +102,9 @@ def _command(u, jump, k, tau):
 
 def command_jumps(ug: np.ndarray, tol: float = 0.1) -> np.ndarray:
     """uint8 (N,): 1 (nonzero) where ug jumps between samples j and j+1, i.e. the step d_j = ug[j+1] - ug[j]
-    departs from its neighbours' mean by more than ``tol`` [V] (the streaming identifier's step
-    test, ``IdentOptions.step_tol``) and is the largest of the three."""
+    departs from its neighbours' mean by more than ``tol`` [V] and is the largest of the three.
+    ``tol`` is the streaming identifier's (``IdentOptions.step_tol``), whose test (the second
+    difference of ug) says that a step is near, not which interval holds it."""
     ug = np.asarray(ug, dtype=np.float64)
     out = np.zeros(ug.shape[0], dtype=np.uint8)
     if ug.shape[0] < 2:
