@@ -1,0 +1,131 @@
+"""``hydromon watch``'s board: the latest health of every rig, worst first, and why.
+
+A maintenance engineer beside a running monitor wants to see which rigs need attention and
+which parameters say so; the health topics carry it, one message per rig every few tenths of a
+second. :class:`Board` keeps the latest valid health per rig (``contract.Health``; an invalid
+payload is counted, never shown as a grade) and the time it arrived by the caller's clock, so a
+rig whose monitor went quiet shows its age. :func:`board_rows` orders the rigs for attention:
+``bad-input`` first (its numbers cannot be trusted, whatever the grade), then by level, worst
+first, then ``stale``; unknown grades last. The "why" column names the parameters whose grade is
+the rig's grade: the ones that carry it.
+
+No I/O and no clock here: the command (``hydromon.commands.watch``) subscribes, queries the
+monitors' latest health and draws.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+from pydantic import ValidationError
+
+from hydromon.contract import DEFAULT_NAMESPACE, GRADES, Health, split_rig_key
+from hydromon.demo import TABLE_PARAMS, _fmt
+
+__all__ = ["BOARD_HEAD", "Board", "board_counts", "board_rows", "render_board_plain", "render_board_rich"]
+
+BOARD_HEAD = ["rig", "grade", "conf", "status", "why", *TABLE_PARAMS, "t [s]", "age [s]"]
+_ATTENTION = {"bad-input": 0, "ok": 1, "converging": 1, "stale": 1}
+
+
+@dataclass
+class Board:
+    """Latest valid health per rig of namespace ``ns``, with its arrival time [s]."""
+
+    ns: str = DEFAULT_NAMESPACE
+    latest: dict[str, dict] = field(default_factory=dict)
+    arrived: dict[str, float] = field(default_factory=dict)
+    invalid: int = 0   # health payloads that are not the contract's Health
+    foreign: int = 0   # messages on keys that are not <ns>/rig/<id>/health
+
+    def update(self, key: str, payload: bytes, now: float) -> bool:
+        """Take one health message; False (and counted) if its key or payload is not valid."""
+        parts = split_rig_key(key, self.ns)
+        if isinstance(parts, str) or parts[1] != "health":
+            self.foreign += 1
+            return False
+        try:
+            health = Health.model_validate_json(payload)
+        except ValidationError:
+            self.invalid += 1
+            return False
+        self.latest[parts[0]] = health.model_dump()
+        self.arrived[parts[0]] = now
+        return True
+
+
+def _why(h: dict) -> str:
+    """The graded parameters whose grade is the rig's (none for health or unknown)."""
+    if h["level"] is None or h["level"] == 0:
+        return "-"
+    names = [p for p, g in h["param_grades"].items() if g == h["grade"]]
+    return ",".join(names) or "-"
+
+
+def _order(item) -> tuple:
+    rig, h = item
+    level = h["level"] if h["level"] is not None else -1
+    return (_ATTENTION.get(h["status"], 1), -level, h["status"] == "stale", rig)
+
+
+def board_rows(board: Board, now: float, top: int | None = None) -> tuple[list[list[str]], int]:
+    """Rows of :data:`BOARD_HEAD` (strings), the rigs that need attention first, and how many
+    rigs ``top`` left out."""
+    items = sorted(board.latest.items(), key=_order)
+    shown = items if top is None else items[:top]
+    rows = []
+    for rig, h in shown:
+        rows.append([rig, h["grade"], f"{h['confidence']:.2f}", h["status"], _why(h),
+                     *[_fmt(h["params"].get(p)) for p in TABLE_PARAMS], f"{h['t']:.1f}",
+                     f"{max(0.0, now - board.arrived[rig]):.1f}"])
+    return rows, len(items) - len(shown)
+
+
+def board_counts(board: Board) -> str:
+    """One line: rigs per grade, worst first, and the invalid payloads if any."""
+    n = Counter(h["grade"] for h in board.latest.values())
+    bad = sum(1 for h in board.latest.values() if h["status"] == "bad-input")
+    parts = [f"{n[g]} {g}" for g in (*reversed(GRADES), "unknown") if n[g]]
+    line = f"{len(board.latest)} rig(s)" + (f": {', '.join(parts)}" if parts else "")
+    if bad:
+        line += f"; {bad} with bad input"
+    if board.invalid:
+        line += f"; {board.invalid} invalid health payload(s) ignored"
+    return line
+
+
+def render_board_plain(board: Board, now: float, top: int | None = None) -> str:
+    """The board as aligned plain text: the counts line, then the table."""
+    rows, more = board_rows(board, now, top)
+    table = [BOARD_HEAD, *rows]
+    widths = [max(len(r[i]) for r in table) for i in range(len(BOARD_HEAD))]
+    lines = [board_counts(board)]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in table]
+    if more:
+        lines.append(f"... and {more} more rig(s) (--top N shows more)")
+    return "\n".join(lines)
+
+
+def render_board_rich(board: Board, now: float, top: int | None = None, title: str = ""):
+    """The board as a ``rich.table.Table`` (grades coloured)."""
+    from rich import box
+    from rich.table import Table
+
+    from hydromon.demo import _STYLE
+
+    rows, more = board_rows(board, now, top)
+    caption = f"... and {more} more rig(s) (--top N shows more)" if more else None
+    table = Table(title=f"{title}\n{board_counts(board)}" if title else board_counts(board), title_justify="left",
+                  caption=caption, caption_justify="left", box=box.SIMPLE_HEAD, pad_edge=False,
+                  padding=(0, 1, 0, 0))
+    for name in BOARD_HEAD:
+        table.add_column(name, justify="right" if name in (*TABLE_PARAMS, "conf", "t [s]", "age [s]") else "left",
+                         no_wrap=name in ("rig", "grade", "status"))
+    for row in rows:
+        style = _STYLE.get(row[1], "")
+        row[1] = f"[{style}]{row[1]}[/]" if style else row[1]
+        if row[3] == "bad-input":
+            row[3] = "[red]bad-input[/]"
+        table.add_row(*row)
+    return table
