@@ -23,7 +23,7 @@ from pydantic import ValidationError
 from hydromon.contract import DEFAULT_NAMESPACE, GRADES, Health, split_rig_key
 from hydromon.demo import TABLE_PARAMS, _fmt
 
-__all__ = ["BOARD_HEAD", "Board", "board_counts", "board_rows", "render_board_plain", "render_board_rich"]
+__all__ = ["BOARD_HEAD", "Board", "board_columns", "board_counts", "board_rows", "render_board_plain", "render_board_rich"]
 
 BOARD_HEAD = ["rig", "grade", "conf", "status", "why", *TABLE_PARAMS, "t [s]", "age [s]"]
 _ATTENTION = {"bad-input": 0, "ok": 1, "converging": 1, "stale": 1}
@@ -107,25 +107,47 @@ def render_board_plain(board: Board, now: float, top: int | None = None) -> str:
     return "\n".join(lines)
 
 
-def render_board_rich(board: Board, now: float, top: int | None = None, title: str = ""):
-    """The board as a ``rich.table.Table`` (grades coloured)."""
+# columns a narrow terminal loses first (rich would otherwise cut every number to "0.0…")
+_DROP_ORDER = ("t [s]", "C_ip", "B_fv", "f_c", "conf")
+
+
+def board_columns(rows: list[list[str]], width: int | None) -> list[int]:
+    """Indices of the :data:`BOARD_HEAD` columns that fit ``width`` characters (None: all), each
+    at its widest cell with rich's padding: the least needed ones go first (``_DROP_ORDER``)."""
+    need = [max([len(name), *(len(r[i]) for r in rows)]) for i, name in enumerate(BOARD_HEAD)]
+    keep = list(range(len(BOARD_HEAD)))
+    for name in (None, *_DROP_ORDER):
+        if name is not None:
+            keep.remove(BOARD_HEAD.index(name))
+        if width is None or sum(need[i] + 2 for i in keep) + 2 <= width:  # padding and separators
+            break
+    return keep
+
+
+def render_board_rich(board: Board, now: float, top: int | None = None, title: str = "",
+                      width: int | None = None):
+    """The board as a ``rich.table.Table`` (grades coloured) for a terminal ``width`` wide
+    (:func:`board_columns`)."""
     from rich import box
+    from rich.markup import escape
     from rich.table import Table
 
     from hydromon.demo import _STYLE
 
     rows, more = board_rows(board, now, top)
+    keep = board_columns(rows, width)
     caption = f"... and {more} more rig(s) (--top N shows more)" if more else None
     table = Table(title=f"{title}\n{board_counts(board)}" if title else board_counts(board), title_justify="left",
                   caption=caption, caption_justify="left", box=box.SIMPLE_HEAD, pad_edge=False,
                   padding=(0, 1, 0, 0))
-    for name in BOARD_HEAD:
-        table.add_column(name, justify="right" if name in (*TABLE_PARAMS, "conf", "t [s]", "age [s]") else "left",
-                         no_wrap=name in ("rig", "grade", "status"))
+    for i in keep:
+        name = BOARD_HEAD[i]
+        table.add_column(escape(name), justify="right" if name in (*TABLE_PARAMS, "conf", "t [s]", "age [s]")
+                         else "left", no_wrap=True)  # escaped: "[s]" is rich's strike-through markup
     for row in rows:
         style = _STYLE.get(row[1], "")
         row[1] = f"[{style}]{row[1]}[/]" if style else row[1]
         if row[3] == "bad-input":
             row[3] = "[red]bad-input[/]"
-        table.add_row(*row)
+        table.add_row(*(row[i] for i in keep))
     return table

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import subprocess
 import sys
@@ -129,3 +130,22 @@ def test_watch_once_with_no_monitor_says_so():
 def test_watch_refuses_bad_options_before_the_bus(args, message):
     r = _watch(*args, timeout=60)
     assert r.returncode == 2 and message in r.stderr, r.stderr
+
+
+def test_rich_board_fits_the_terminal_by_dropping_the_least_needed_columns():
+    from rich.console import Console
+
+    from hydromon.watch import render_board_rich
+
+    b = Board()
+    b.update("hydro/rig/table4-g3/health", _health(4, grades={"C_ip": "fault", "C_ep": "fault", "K_sv": "fault"}), 0.0)
+    b.update("hydro/rig/table4-g2/health", _health(0, grades={"K_sv": "health"}), 0.0)
+    for width, gone in ((200, ()), (80, ("t [s]", "C_ip"))):
+        console = Console(width=width, record=True, file=io.StringIO())
+        console.print(render_board_rich(b, 1.0, None, "hydromon watch", width))
+        text = console.export_text()
+        assert "…" not in text, text  # no number or name cut short
+        assert "C_ip,C_ep,K_sv" in text and "table4-g3" in text
+        header = next(line for line in text.splitlines() if "grade" in line and "rig" in line)
+        for name in BOARD_HEAD:
+            assert (name in header) == (name not in gone), (width, name, header)

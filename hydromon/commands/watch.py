@@ -119,12 +119,13 @@ def _follow(sub, board, args, stop, clock, top, render_plain, render_rich, key) 
         from rich.console import Console
         from rich.live import Live
 
-        with Live(render_rich(board, clock(), top, title), console=Console(), refresh_per_second=2,
+        console = Console()
+        with Live(render_rich(board, clock(), top, title, console.width), console=console, refresh_per_second=2,
                   transient=True) as live:
             while not done():
                 stop.wait(0.5)
                 drain()
-                live.update(render_rich(board, clock(), top, title))
+                live.update(render_rich(board, clock(), top, title, console.width))
         drain()
         return
     next_print = clock()
