@@ -8,8 +8,18 @@ import math
 import numpy as np
 import sys
 import os  # noqa: F401
-from monitor.svf import svf_matrices, svf_init, svf_step, noise_gram
-from monitor.layout import SG_HALF
+from monitor import svf as svf_cubic
+from monitor.layout import SG_HALF, SVF_STATE
+import svf_foh
+
+# svf="cubic": the package's SVF (cubic hold, state of SVF_STATE floats, outputs one sample late,
+# every signal alike); svf="foh": the first-order hold of 1c54311 the session-3 numbers used.
+SVF = {"cubic": (svf_cubic, SVF_STATE), "foh": (svf_foh, 3)}
+
+
+def noise_gram(m):
+    """The Gram matrix of whichever SVF built m (cubic: (3, 7); foh: (4, 3, 3))."""
+    return (svf_foh if m.ndim == 3 else svf_cubic).noise_gram(m)
 
 NOM = np.array([100.0, 1e4, 10.0, 1e6])
 
@@ -43,17 +53,19 @@ def hp_filter(u, b, h):
     return y
 
 
-def force_rows(x1, q, h, a=80.0, warm=0.4, guard=0.1, vstick=2e-3, x1_noise=None, hp=0.0):
+def force_rows(x1, q, h, a=80.0, warm=0.4, guard=0.1, vstick=2e-3, x1_noise=None, hp=0.0, svf="cubic"):
     """Rows (phi [s2F x1, sF x1, F sgn, F x1], y = F q) as the streaming recipe forms them.
 
     q: the per-sample force A1 x3 - A2 x4 - F_L (or any target), aligned with x1.
     Returns phi (nr, 4), y (nr,), idx (instants c of the rows), var_x1 (noise variance used)."""
-    m = svf_matrices(a, h)
+    mod, nst = SVF[svf]
+    m = mod.svf_matrices(a, h)
+    svf_init, svf_step = mod.svf_init, mod.svf_step
     b_hp = hp
     N = len(x1)
     ne = noise_est(x1) if x1_noise is None else np.full(N, 70.0 * x1_noise ** 2)
     den = sum(j * j for j in range(-SG_HALF, SG_HALF + 1))
-    st = np.zeros((3, 3)); y = np.zeros((3, 3))
+    st = np.zeros((3, nst)); y = np.zeros((3, 3))
     slow = 0.0
     rows, ys, idx = [], [], []
     warm_n = math.ceil(warm / h); guard_n = math.ceil(guard / h)

@@ -4,8 +4,6 @@ import sys as _s
 from variants import *
 from batch import force_rows, fit
 
-seeds = int(_s.argv[1]) if len(_s.argv) > 1 else 10
-seed0 = int(_s.argv[2]) if len(_s.argv) > 2 else 0
 HAC = (8, 50, 100, 200)
 
 
@@ -46,6 +44,9 @@ def line(label, est, ses):
 
 
 if __name__ == "__main__":
+    # (parsed here, not at import: joint.py and causal.py import this module with their own arguments)
+    seeds = int(_s.argv[1]) if len(_s.argv) > 1 else 10
+    seed0 = int(_s.argv[2]) if len(_s.argv) > 2 else 0
     for spec in ["none", "realistic", "stress"]:
         n = 1 if spec == "none" else seeds
         runs = runs_for(spec, seeds=n, seed0=seed0)

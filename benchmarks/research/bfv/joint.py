@@ -5,27 +5,35 @@ Usage: python joint.py [seeds] [seed0] [noise ...]"""
 import sys as _s
 from batch_obs import *
 from batch import force_rows, fit, noise_est, NOM
-from monitor.svf import noise_gram
+from batch import noise_gram
 
 STEPS = np.array([1e-3, 1e-3, 1e-3])  # relative steps for 1/beta, theta, C_ip
 CEP_STEP = 1e-14
 
 
-def rows_for(s, cp, sig, mode, lag, guard, qmod=30.0, a=80.0):
-    p1, p2 = observe(s, cp, RC, cfg.h, sig, qmod, mode, lag)
+def rows_for(s, cp, sig, mode, lag, guard, qmod=30.0, a=80.0, svf="cubic", order4=True):
+    p1, p2 = observe(s, cp, RC, cfg.h, sig, qmod, mode, lag, order4=order4)
     q = cfg.A1 * p1 - cfg.A2 * p2 - cfg.F_L
-    return force_rows(s[:, 1], q, cfg.h, a=a, guard=guard)
+    return force_rows(s[:, 1], q, cfg.h, a=a, guard=guard, svf=svf)
 
 
-def joint_fit(s, cp0, ccov, sig, mode="lag", lag=200, guard=0.1, use_cep=True, prior_scale=1.0, a=80.0, qmod=30.0):
-    phi, y, idx, var1, m = rows_for(s, cp0, sig, mode, lag, guard, qmod, a)
+def joint_fit(s, cp0, ccov, sig, mode="lag", lag=200, guard=0.1, use_cep=True, prior_scale=1.0, a=80.0, qmod=30.0,
+              svf="cubic", order4=True, cp_nom=None, joint_resid=False):
+    """cp_nom: run the observer (and its sensitivities) at these chamber parameters instead of the
+    estimate cp0; the prior on delta = cp_true - cp_nom is then centred at cp0 - cp_nom (a streaming
+    monitor would freeze cp_nom early and read the current chamber estimate as the prior).
+    joint_resid: the residual variance and kappa (k8 row only) from the joint fit's own residuals
+    (one re-solve) instead of the observer-only fit's, which carry the cp_nom misfit."""
+    cp0 = list(cp0)
+    lin = list(cp0) if cp_nom is None else list(cp_nom)
+    phi, y, idx, var1, m = rows_for(s, lin, sig, mode, lag, guard, qmod, a, svf, order4)
     cols = []
     steps = []
     for i in range(4 if use_cep else 3):
-        cp = list(cp0)
-        d = CEP_STEP if i == 3 else STEPS[i] * cp0[i]
-        cp[i] = cp0[i] + d
-        _, yi, idx_i, _, _ = rows_for(s, cp, sig, mode, lag, guard, qmod, a)
+        cp = list(lin)
+        d = CEP_STEP if i == 3 else STEPS[i] * lin[i]
+        cp[i] = lin[i] + d
+        _, yi, idx_i, _, _ = rows_for(s, cp, sig, mode, lag, guard, qmod, a, svf, order4)
         assert np.array_equal(idx_i, idx)
         cols.append((yi - y) / d)   # dy/dcp_i
         steps.append(d)
@@ -64,9 +72,25 @@ def joint_fit(s, cp0, ccov, sig, mode="lag", lag=200, guard=0.1, use_cep=True, p
         A = X.T @ X * w
         A[4:, 4:] += Pri
         b = X.T @ y * w
+        b[4:] += Pri @ ((np.asarray(cp0[:nd]) - np.asarray(lin[:nd])) / sc[4:])
         Acomp = A - S * w
         th = np.linalg.solve(Acomp, b)
         cov = np.linalg.inv(Acomp) @ A @ np.linalg.inv(Acomp)
+        if joint_resid and kname == "k8":
+            e = y - X @ th
+            s2j = e @ e / (n - 4)
+            kj = 1.0
+            for j in range(1, 9):
+                kj += 2.0 * (1.0 - j / 9.0) * (e[j:] @ e[:-j]) / (e @ e)
+            kj = min(max(kj, 0.25), 17.0)
+            w = 1.0 / (s2j * kj)
+            A = X.T @ X * w
+            A[4:, 4:] += Pri
+            b = X.T @ y * w
+            b[4:] += Pri @ ((np.asarray(cp0[:nd]) - np.asarray(lin[:nd])) / sc[4:])
+            Acomp = A - S * w
+            th = np.linalg.solve(Acomp, b)
+            cov = np.linalg.inv(Acomp) @ A @ np.linalg.inv(Acomp)
         res[kname] = (th[:4] * NOM, np.sqrt(np.diag(cov))[:4] * NOM, th[4:] * sc[4:])
     return res, (th0, ses0)
 

@@ -141,7 +141,27 @@ def rts(sf, Pf, sp, Pp, F):
     return ss, Ps
 
 
-def fixed_lag(sf, Pf, sp, Pp, F, lag):
+@njit(cache=True)
+def _fixed_lag_nb(sf, Pf, sp, Pp, F, lag):
+    """fixed_lag's arithmetic compiled (same gains, same recursion; checked equal to 1e-12 rel)."""
+    n = sf.shape[0]
+    out = sf.copy()
+    Gs = np.zeros((n, 2, 2))
+    for k in range(n - 1):
+        Gs[k] = Pf[k] @ F[k + 1].T @ np.linalg.inv(Pp[k + 1])
+    for k in range(n):
+        e = min(n - 1, k + lag)
+        s = sf[e].copy()
+        for j in range(e - 1, k - 1, -1):
+            d0 = s[0] - sp[j + 1, 0]; d1 = s[1] - sp[j + 1, 1]
+            s0 = sf[j, 0] + Gs[j, 0, 0] * d0 + Gs[j, 0, 1] * d1
+            s1 = sf[j, 1] + Gs[j, 1, 0] * d0 + Gs[j, 1, 1] * d1
+            s[0] = s0; s[1] = s1
+        out[k] = s
+    return out
+
+
+def fixed_lag_py(sf, Pf, sp, Pp, F, lag):
     """Fixed-lag smoother: the estimate at k uses samples up to k+lag (RTS over a window)."""
     n = sf.shape[0]
     out = sf.copy()
@@ -155,6 +175,12 @@ def fixed_lag(sf, Pf, sp, Pp, F, lag):
             s = sf[j] + Gs[j] @ (s - sp[j + 1])
         out[k] = s
     return out
+
+
+def fixed_lag(sf, Pf, sp, Pp, F, lag):
+    """Fixed-lag smoother: the estimate at k uses samples up to k+lag (RTS over a window).
+    lag 0 is the filter itself."""
+    return _fixed_lag_nb(sf, Pf, sp, Pp, F, int(lag))
 
 
 def to_pressures(s, x1, cp, rc):
