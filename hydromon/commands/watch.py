@@ -94,7 +94,7 @@ def _print_once(board, args, orjson, render_plain, now, top) -> int:
         counts = Counter(h["grade"] for h in board.latest.values())
         print(orjson.dumps({"rigs": dict(sorted(board.latest.items())), "counts": dict(sorted(counts.items())),
                             "invalid": board.invalid}).decode())
-    else:
+    elif board.latest:  # an empty table says nothing the error below does not
         print(render_plain(board, now, top))
     if not board.latest:
         print(f"hydromon watch: no monitor answered with a rig's health in {args.wait:g} s (is one running on "
