@@ -106,10 +106,23 @@ def _time_ns(name: str, value) -> int:
 # -- reading ------------------------------------------------------------------------------
 @contextlib.contextmanager
 def opened(src):
-    """``(binary file, name)`` of a path (opened and closed here) or a stream (rewound when seekable)."""
+    """``(binary file, name)`` of a path (opened and closed here) or a stream (rewound when seekable).
+
+    A path that cannot be opened raises FileNotFoundError (missing) or :class:`RecordingError`
+    (a directory, no permission...), each naming the path: what the commands report as a
+    one-line error, not a traceback."""
     if isinstance(src, (str, os.PathLike)):
-        with open(src, "rb") as f:
-            yield f, os.fspath(src)
+        name = os.fspath(src)
+        try:
+            f = open(src, "rb")
+        except FileNotFoundError:
+            raise FileNotFoundError(f"{name}: no such file") from None
+        except IsADirectoryError:
+            raise RecordingError(f"{name}: is a directory; give an MCAP recording (a .mcap file)") from None
+        except OSError as exc:
+            raise RecordingError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+        with f:
+            yield f, name
     else:
         if src.seekable():
             src.seek(0)

@@ -331,3 +331,14 @@ def test_a_client_whose_router_is_not_up_is_one_error_line_and_status_1(tmp_path
     assert "Traceback" not in cap.err and err.startswith(f"hydromon {command[0]}: error: cannot open the zenoh session")
     assert ep in err and "Unable to connect" in err and " at /" not in err
     assert not (tmp_path / "r.mcap").exists()
+
+
+@pytest.mark.parametrize("argv", [["evaluate"], ["audit"], ["replay", "--direct"],
+                                  ["replay", "--wait", "0", "--connect", "tcp/127.0.0.1:9"], ["recover"]])
+def test_a_directory_given_as_the_recording_is_one_error_line_not_a_traceback(tmp_path, capsys, argv):
+    # a review: evaluate and replay (bus and --direct) raised IsADirectoryError with a traceback
+    # (exit 1) for a directory named like a recording; recover said "no such file"
+    folder = tmp_path / "run.mcap"
+    folder.mkdir()
+    assert main([argv[0], str(folder), *argv[1:]]) == 2
+    one_error_line(capsys, argv[0], f"{folder}: is a directory")

@@ -31,6 +31,8 @@ def run(args) -> int:
     from hydromon.commands._checks import replace_on_success, writable_file
     from hydromon.mcap_io import recover
 
+    if os.path.isdir(args.file):
+        raise ValueError(f"{args.file}: is a directory; give the damaged .mcap file")
     if not os.path.isfile(args.file):
         raise FileNotFoundError(f"{args.file}: no such file")
     out = args.out or default_output(args.file)
