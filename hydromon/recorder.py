@@ -6,7 +6,9 @@ worker loop drains; between batches the loop closes the open chunk once it is
 ``flush_interval_ns`` old, so a killed recorder loses well under a second, and rotates
 files by size or age. ``log_time`` is the receive time (``clock()``, wall-clock ns);
 ``publish_time`` is the payload's sample time ``t`` [s] in ns when the payload is a JSON
-object with a numeric ``t``, else the receive time.
+object with a numeric ``t``, else the receive time. Rigs publish their config once at their
+start, so at its start the recorder asks the running ones for theirs (``<ns>/rig/*/config``,
+which the sim node answers), as the monitor does, and records the replies.
 
 File names never contain a rig id: ``out`` is either a ``.mcap`` path, whose parts after
 the first get ``-1``, ``-2``... before the suffix, or a directory, where parts are named
@@ -178,7 +180,7 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
            capacity: int = 65536, poll_s: float = 0.005,
            on_file: Callable[[Path], None] | None = None,
            on_message: Callable[[str], None] | None = None,
-           clock: Callable[[], int] = time.time_ns) -> RecordResult:
+           clock: Callable[[], int] = time.time_ns, config_query_s: float = 5.0) -> RecordResult:
     """Record ``<namespace>/**`` from ``session`` until ``stop_event`` is set or ``duration_s``.
 
     Parameters
@@ -206,6 +208,11 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
         Called with the key of each message once it is handed to the writer (progress).
     clock : callable
         Receive time source [ns since the Unix epoch].
+    config_query_s : float
+        How long to wait for the replies to the query that asks the rigs already running for
+        their configs [s] (a rig publishes its config once at its start: a recorder started
+        after it would otherwise record none, and the recording would be graded with the
+        default constants).
     """
     _check_ns(namespace)
     if rotate_seconds is not None and not (isinstance(rotate_seconds, (int, float)) and rotate_seconds > 0):
@@ -246,9 +253,25 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
 
     try:
         with session.declare_subscriber(f"{namespace}/**", zenoh.handlers.FifoChannel(capacity)) as sub:
+            # rigs that published their config before we subscribed: ask their nodes (the sim
+            # node answers on <ns>/rig/*/config), as the monitor does; replies are recorded as
+            # config messages, ahead of the samples drained with them
+            replies = session.get(f"{namespace}/rig/*/config", zenoh.handlers.FifoChannel(4096),
+                                  timeout=config_query_s)
+            replies_until = time.monotonic() + config_query_s + 1.0
             try:
                 while True:
                     n = 0
+                    if replies is not None:
+                        try:
+                            while (reply := replies.try_recv()) is not None:
+                                if reply.ok is not None:
+                                    handle(reply.ok)
+                                    n += 1
+                        except zenoh.ZError:  # the query is over (zenoh closes the reply channel)
+                            replies = None
+                        if time.monotonic() > replies_until:
+                            replies = None
                     while n < _BATCH and (sample := sub.try_recv()) is not None:
                         handle(sample)
                         n += 1

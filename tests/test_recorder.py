@@ -179,6 +179,39 @@ def test_record_over_a_real_zenoh_session_in_a_thread(tmp_path):
 
 @pytest.mark.network
 @pytest.mark.timeout(60)
+def test_a_recorder_started_late_asks_the_running_rigs_for_their_configs(tmp_path):
+    # a review: a recorder started after the rigs recorded no config (a rig publishes it once, at
+    # its start), so the recording was evaluated and replayed with the default rig constants
+    # (`hydromon sim --fleet` with p_s 16 MPa, F_L 6 kN, then `hydromon record`: m 287 kg, not 125).
+    # The sim node answers late joiners on <ns>/rig/*/config, as the monitor uses.
+    ep = free_tcp_endpoint()
+    cfg = RigConfig(K_f=42.0, p_s=16e6).model_dump_json().encode()
+    with open_session("peer", listen=[ep]) as rig_session, open_session("peer", connect=[ep]) as rec_session:
+        queryable = rig_session.declare_queryable(
+            "hydro/rig/*/config", lambda q: q.reply(config_key("rig-7"), cfg))
+        stop, result, count = threading.Event(), {}, {"n": 0}
+        out = tmp_path / "late.mcap"
+        worker = threading.Thread(target=lambda: result.update(r=record(
+            rec_session, out, stop_event=stop, on_message=lambda key: count.__setitem__("n", count["n"] + 1))),
+            daemon=True)
+        worker.start()
+        pub = rig_session.declare_publisher(sample_key("rig-7"), congestion_control=BLOCK)
+        wait_for(lambda: pub.matching_status.matching, 20, "the recorder's subscription")
+        for i in range(20):
+            pub.put(sample_bytes(i, i * 0.01))
+        wait_for(lambda: count["n"] >= 21, 20, "the samples and the config")
+        stop.set()
+        worker.join(20)
+        queryable.undeclare()
+    assert not worker.is_alive()
+    assert read_rig_config(out, "rig-7") == RigConfig(K_f=42.0, p_s=16e6)
+    msgs = [m[:2] for m in read_recording(out)]
+    assert msgs.count((config_key("rig-7"), cfg)) == 1  # as a message too (where it took effect)
+    assert [m[0] for m in msgs].count(sample_key("rig-7")) == 20
+
+
+@pytest.mark.network
+@pytest.mark.timeout(60)
 def test_a_burst_of_bogus_keys_and_configs_does_not_flood_the_recorders_log(tmp_path, caplog):
     # fault injection: 50,000 distinct bogus rig ids with non-JSON payloads made 50,000 log
     # lines (one per key, and a set of every key held); invalid configs, one line each
