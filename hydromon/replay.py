@@ -237,10 +237,13 @@ def health_jsonl(health: Iterable[tuple[str, bytes]]) -> Iterator[bytes]:
 
 @dataclass
 class ReplayStats:
-    """What a bus replay did: messages put, passes, lateness of the sends [s], wall time [s]."""
+    """What a bus replay did: messages put, whole passes, lateness of the sends [s], wall time
+    [s]; ``stopped_at``: where in its pass the stop event cut the replay short [s of recording
+    from the window's start], None if it was not."""
 
     published: int = 0
     passes: int = 0
+    stopped_at: float | None = None
     max_late: float = 0.0
     wall: float = 0.0
     keys: set = field(default_factory=set)
@@ -272,6 +275,8 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
     if not rate >= 0:
         raise ValueError(f"rate {rate!r} must be >= 0")
     first, lo, hi, count = _window(src, start, duration)
+    last = recording_span(src)[1]
+    end = last if hi is None else min(hi, last)  # the window's end, for the progress of a pass
     stop = stop_event if stop_event is not None else threading.Event()
     match = KeyFilter(keys)
     stats = ReplayStats()
@@ -303,10 +308,12 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
                 offset = (base_ns + log_ns - first_ns) / 1e9
                 if rate > 0:
                     wait = t0 + offset / rate - clock()
-                    if wait > 0 and stop.wait(wait):
+                    if (stop.wait(wait) if wait > 0 else stop.is_set()):
+                        stats.stopped_at = (log_ns - first_ns) / 1e9
                         break
                     stats.max_late = max(stats.max_late, -wait)
                 elif stop.is_set():
+                    stats.stopped_at = (log_ns - first_ns) / 1e9
                     break
                 pub = pubs.get(key)
                 if pub is None:
@@ -315,9 +322,9 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
                 stats.published += 1
                 stats.keys.add(key)
                 if progress is not None and stats.published % 200 == 0:
-                    progress((log_ns - first_ns) / 1e9, ((hi or last_ns) - first_ns) / 1e9)
-            if first_ns is None:
-                break  # an empty window
+                    progress((log_ns - first_ns) / 1e9, (end - first_ns) / 1e9)
+            if first_ns is None or stats.stopped_at is not None:
+                break  # an empty window, or stopped mid-pass: not a pass, and its progress stays where it was
             stats.passes += 1
             if progress is not None:
                 progress((last_ns - first_ns) / 1e9, (last_ns - first_ns) / 1e9)

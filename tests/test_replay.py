@@ -208,6 +208,38 @@ def test_late_sends_do_not_shift_later_deadlines(recording):
     np.testing.assert_allclose(sent[~late], due[~late], rtol=0, atol=1e-9)  # back on the grid after
 
 
+@pytest.mark.parametrize("rate", [0.0, 1.0])
+def test_a_replay_stopped_mid_pass_reports_where_not_a_whole_pass(recording, rate):
+    # a review: the progress bar's total was the position reached so far (always full), and a
+    # replay stopped by Ctrl-C/SIGTERM after 3 s of a 20 s recording was reported as "1 pass(es)"
+    # with the bar at 3.1/3.1 s; a replay running late never looked at the stop event
+    class Stopping(_FakeTime):
+        stop = False
+
+        def is_set(self):
+            return self.stop
+
+        def wait(self, s):
+            super().wait(s)
+            return self.stop
+
+    ft = Stopping()
+    session = _FakeSession(ft)
+    calls = []
+
+    def progress(done, total):
+        calls.append((done, total))
+        if len(session.sent) >= 1000:
+            ft.stop = True
+
+    stats = replay_bus(session, recording, rate=rate, stop_event=ft, clock=ft, progress=progress)
+    first, last, _ = recording_span(recording)
+    assert stats.passes == 0 and stats.published == 1000
+    assert stats.stopped_at == pytest.approx(calls[-1][0], abs=0.011) and stats.stopped_at < 2.5
+    assert all(total == pytest.approx((last - first) / 1e9) for _, total in calls)  # the window, not the position
+    assert calls[-1][0] < calls[-1][1]  # the bar stays where the replay stopped
+
+
 # -- damaged files and empty windows: a clear error naming the file, exit 2 -----------------------
 def _summary_flip(data: bytes) -> bytes:
     import struct

@@ -150,8 +150,10 @@ def run(args) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    print(f"hydromon replay: {stats.published} messages on {len(stats.keys)} key(s), {stats.passes} pass(es) "
-          f"in {stats.wall:.2f} s; max lateness {stats.max_late * 1e3:.1f} ms", file=sys.stderr)
+    stopped = "" if stats.stopped_at is None else \
+        f", stopped (Ctrl-C/SIGTERM) {stats.stopped_at:.1f} s into a pass of {total:.1f} s"
+    print(f"hydromon replay: {stats.published} messages on {len(stats.keys)} key(s), {stats.passes} pass(es)"
+          f"{stopped} in {stats.wall:.2f} s; max lateness {stats.max_late * 1e3:.1f} ms", file=sys.stderr)
     if stats.published == 0 and not stop.is_set():
         raise NothingToReplay(f"{args.file}: no message in the window (--start, --duration, --keys): nothing sent")
     return 0
