@@ -336,10 +336,28 @@ def test_plot_markers_count_a_burst_the_gate_still_holds(g4_run, tmp_path):
     assert plot_evaluation(ev, tmp_path / "plots").glitch_markers == ev.glitches
 
 
-def test_plots_into_a_file_is_a_clear_error_after_the_result(g4_csv, tmp_path, capsys):
+def test_plots_into_a_file_is_refused_before_the_evaluation(g4_csv, tmp_path, capsys, monkeypatch):
+    # a review: an existing file as --plots was refused only after the evaluation (minutes with
+    # --refine), as audit --report and reproduce --plots are not
+    import hydromon.evaluate
+
     target = tmp_path / "a-file"
     target.write_text("")
-    assert main(["evaluate", str(g4_csv), "--json", "--plots", str(target)]) == 2
+    monkeypatch.setattr(hydromon.evaluate, "evaluate", lambda *a, **k: pytest.fail("evaluated"))
+    assert main(["evaluate", str(g4_csv), "--json", "--refine", "--plots", str(target)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.strip() == f"hydromon evaluate: error: --plots {str(target)!r} exists and is not a directory"
+
+
+def test_a_plotting_error_comes_after_the_result(g4_csv, tmp_path, capsys, monkeypatch):
+    import hydromon.evaluate_plots
+
+    def fail(result, directory):
+        raise ValueError(f"plots directory {str(directory)!r}: No space left on device")
+
+    monkeypatch.setattr(hydromon.evaluate_plots, "plot_evaluation", fail)
+    assert main(["evaluate", str(g4_csv), "--json", "--plots", str(tmp_path / "plots")]) == 2
     captured = capsys.readouterr()
     assert json.loads(captured.out)["grade"] == "average"  # the evaluation is not lost
     assert "plots directory" in captured.err

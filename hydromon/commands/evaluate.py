@@ -38,6 +38,10 @@ def run(args) -> int:
 
     from pathlib import Path
 
+    if args.plots:  # before the evaluation (minutes with --refine): not a refusal after it
+        from hydromon.commands._checks import writable_dir
+
+        writable_dir("--plots", args.plots)
     ranges = ranges_from_args(args)
     config = config_from_args(args)
     rec = load_recording(args.file, rig=args.rig, config=config)
