@@ -421,3 +421,24 @@ def test_a_record_in_wrong_units_names_no_cause(what, scale):
     assert "does not obey the model" in res.note, what
     # the same record in SI still names its effect
     assert audit(run.samples, run.config).cause == "load_offset"
+
+
+def test_audit_reports_its_stages_and_a_long_audit_says_so_on_stderr():
+    # a review: a one-hour record audited for 95 s with nothing on stderr after the header line
+    from hydromon.commands.audit import Progress
+
+    _, run = hidden_case(2001, noise="none")
+    calls = []
+    audit(run.samples, run.config, AuditOptions(free_run=False), library=LIBRARY[:3],
+          progress=lambda *a: calls.append(a))
+    names = [c.name for c in LIBRARY[:3]]
+    assert calls == [(0, 3, "nominal"), *[(i + 1, 3, n) for i, n in enumerate(names)]]
+
+    now, out = [0.0], io.StringIO()
+    p = Progress(every=5.0, clock=lambda: now[0], stream=out)
+    for t, (done, total, name) in zip([1.0, 6.0, 8.0, 12.0], calls):
+        now[0] = t
+        p(done, total, name)
+    # quiet for the first 5 s, then at most every 5 s (not at 8 s), and nothing once done
+    assert out.getvalue().splitlines() == [
+        f"hydromon audit: 1 of 3 candidate extensions tried (last {names[0]}), 6 s so far"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -94,6 +95,25 @@ def load(path: str, rig: str | None = None, config=None):
     return rec.config, samples, stretch
 
 
+class Progress:
+    """``progress(done, total, name)`` for :func:`monitor.audit.audit`: once the audit has taken
+    ``every`` [s] of wall time, a line on stderr per stage at most every ``every`` [s] (a short
+    audit prints nothing; a long record takes minutes)."""
+
+    def __init__(self, every: float = 5.0, clock=time.monotonic, stream=None):
+        self.every, self.clock, self.stream = every, clock, stream
+        self.start = clock()
+        self.next = self.start + every
+
+    def __call__(self, done: int, total: int, name: str) -> None:
+        now = self.clock()
+        if now < self.next or done >= total:
+            return
+        self.next = now + self.every
+        what = "nominal model fitted" if done == 0 else f"{done} of {total} candidate extensions tried (last {name})"
+        print(f"hydromon audit: {what}, {now - self.start:.0f} s so far", file=self.stream or sys.stderr, flush=True)
+
+
 def run(args) -> int:
     from hydromon.audit_report import summary, to_json, write_report
     from hydromon.commands._checks import writable_dir
@@ -107,7 +127,7 @@ def run(args) -> int:
     if args.report:
         writable_dir("--report", args.report)
     config, samples, stretch = load(args.file, args.rig, config_from_args(args))
-    result = audit(samples, config, options)
+    result = audit(samples, config, options, progress=Progress())
     # the result first: a report that cannot be written (disk full) must not take it along
     if args.json:
         print(json.dumps({**to_json(result), "stretch": stretch}), flush=True)

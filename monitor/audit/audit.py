@@ -238,7 +238,7 @@ def impossible_params(params: dict) -> list[str]:
 
 
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
-          library=LIBRARY) -> AuditResult:
+          library=LIBRARY, progress=None) -> AuditResult:
     """Audit one record.
 
     Parameters
@@ -250,6 +250,10 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     options : AuditOptions
     library : sequence of Candidate
         The named extensions to rank (default: all seven).
+    progress : callable or None
+        Called as ``progress(done, total, name)`` once the nominal model is fitted (``done``
+        0, ``name`` ``"nominal"``) and after each candidate (``done`` of ``total`` tried,
+        ``name`` the candidate's): a long record takes minutes.
     """
     cfg = config or RigConfig()
     opt = options or AuditOptions()
@@ -291,8 +295,12 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         tr, _ = _mse_split(fit, split)
         return _log_ratio(nom_tr, tr), value, fit
 
+    if progress is not None:
+        progress(0, len(library), "nominal")
     results = []
-    for cand in library:
+    for done, cand in enumerate(library, 1):
+        if progress is not None and done > 1:
+            progress(done - 1, len(library), library[done - 2].name)
         best = None
         grid = cand.grid(sig)
         for value in grid:
@@ -354,6 +362,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             train_ratio={g: tr[g] / nom_tr[g] if nom_tr[g] > 0 else 1.0 for g in BLOCKS},
             gain=float(gain), freerun=fr, params=params, effect=effect, caveat=cand.caveat, simulated=sim,
             residuals={g: (fit.blocks[g].rows, fit.residuals[g]) for g in BLOCKS}))
+    if progress is not None:
+        progress(len(library), len(library), library[-1].name)
     results.sort(key=lambda c: -c.score)
 
     top = results[0]
