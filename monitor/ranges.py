@@ -87,6 +87,16 @@ class RangeArrays(NamedTuple):
     margins: np.ndarray
 
 
+def _brief(exc: ValidationError) -> str:
+    """A pydantic error on one line: ``where: what`` per problem (pydantic's own text spans
+    several lines per problem, with the whole input and a web address)."""
+    parts = []
+    for e in exc.errors():
+        where = ".".join(str(x) for x in e["loc"])
+        parts.append(f"{where + ': ' if where else ''}{e['msg'].removeprefix('Value error, ')}")
+    return "; ".join(parts)
+
+
 class Ranges(BaseModel):
     """Health ranges: one :class:`ParamRange` per graded parameter, keyed by bus name."""
 
@@ -110,12 +120,15 @@ class Ranges(BaseModel):
         not UTF-8, or the bad entry)."""
         try:
             text = Path(path).read_text()
-        except (OSError, UnicodeDecodeError) as e:
-            raise ValueError(f"ranges file {str(path)!r}: {e}") from None
+        except OSError as e:
+            raise ValueError(f"ranges file {str(path)!r}: {e.strerror or e}") from None
+        except UnicodeDecodeError as e:
+            raise ValueError(f"ranges file {str(path)!r}: byte {e.object[e.start]:#04x} at offset {e.start} "
+                             "is not UTF-8 text (a ranges JSON file?)") from None
         try:
             return cls.model_validate_json(text)
         except ValidationError as e:
-            raise ValueError(f"bad ranges file {str(path)!r}: {e}") from None
+            raise ValueError(f"bad ranges file {str(path)!r}: {_brief(e)}") from None
 
     @classmethod
     def default(cls) -> Ranges:

@@ -342,3 +342,19 @@ def test_a_directory_given_as_the_recording_is_one_error_line_not_a_traceback(tm
     folder.mkdir()
     assert main([argv[0], str(folder), *argv[1:]]) == 2
     one_error_line(capsys, argv[0], f"{folder}: is a directory")
+
+
+@pytest.mark.parametrize("text, needle", [
+    (None, "missing.json': No such file or directory"),
+    ("t,ug,x1\n0,0,0\n", "Invalid JSON: expected ident at line 1 column 2"),
+    ('{"params": {"K_sv": {"direction": "up", "edges": [1, 2, 3, 4]}}, "x": 1}',
+     "params.K_sv.direction: Input should be 'rising' or 'falling'; x: Extra inputs are not permitted"),
+])
+def test_a_bad_ranges_file_is_one_error_line(tmp_path, capsys, text, needle):
+    # a review: pydantic's own text (several lines per problem, the whole file as its input and a
+    # web address) and "[Errno 2] No such file or directory: '...'" after the name
+    path = tmp_path / "missing.json"
+    if text is not None:
+        path.write_text(text)
+    assert main(["monitor", "--ranges", str(path), "--duration", "0.1"]) == 2
+    one_error_line(capsys, "monitor", f"ranges file '{path}'", needle)
