@@ -40,6 +40,55 @@ _BATCH = 1000  # messages drained between timer checks
 _WARN_KEYS = 20  # keys whose non-JSON payloads are logged (one line each); the rest are counted
 
 
+class _ConfigQuery:
+    """Asks the running rigs for their configs (``<ns>/rig/*/config``, which the sim node
+    answers): at the start, and again (at most every ``min_interval_s``) once a sample comes
+    from a rig whose config has not been seen, as each rig id at most once: the first query can
+    find no route (the session's links or the peers' declarations not yet up) or the rig can
+    start later. Replies already recorded (the same payload on the key) are not recorded again."""
+
+    def __init__(self, session, namespace: str, timeout_s: float, min_interval_s: float = 1.0,
+                 clock=time.monotonic):
+        self.session, self.selector = session, f"{namespace}/rig/*/config"
+        self.timeout_s, self.min_interval_s, self.clock = timeout_s, min_interval_s, clock
+        self.configured: set[str] = set()  # rigs whose config was seen
+        self.asked: set[str] = set()  # rigs a query was sent or is due for
+        self.due = True
+        self.replies = None
+        self.until = self.last = -math.inf
+
+    def saw(self, key: str) -> None:
+        """Note a message's key: a config configures its rig; a sample of a rig not configured
+        (and not asked about yet) makes a query due."""
+        head, _, leaf = key.rpartition("/")
+        if leaf == "config":
+            self.configured.add(head.rpartition("/")[2])
+        elif leaf == "sample":
+            rig = head.rpartition("/")[2]
+            if rig not in self.configured and rig not in self.asked:
+                self.asked.add(rig)
+                self.due = True
+
+    def drain(self, handle: Callable, recorded: dict[str, bytes]) -> int:
+        """Send a due query, and pass the replies in so far to ``handle``; returns how many."""
+        now = self.clock()
+        if self.replies is not None and now > self.until:
+            self.replies = None
+        if self.replies is None and self.due and now - self.last >= self.min_interval_s:
+            self.due, self.last, self.until = False, now, now + self.timeout_s + 1.0
+            self.replies = self.session.get(self.selector, zenoh.handlers.FifoChannel(4096), timeout=self.timeout_s)
+        n = 0
+        if self.replies is not None:
+            try:
+                while (reply := self.replies.try_recv()) is not None:
+                    if reply.ok is not None and recorded.get(str(reply.ok.key_expr)) != reply.ok.payload.to_bytes():
+                        handle(reply.ok)
+                        n += 1
+            except zenoh.ZError:  # the query is over (zenoh closes the reply channel)
+                self.replies = None
+        return n
+
+
 @dataclass
 class RecordResult:
     """Where a recording went: ``files`` in order, message counts."""
@@ -152,6 +201,11 @@ class Rotation:
         if parsed is not None and parsed[1] == "config" and _valid_config(payload):
             self._configs[key] = payload  # carried into the next parts (an invalid one the monitor rejects: not)
 
+    @property
+    def recorded_configs(self) -> dict[str, bytes]:
+        """The last valid config recorded on each config key (what each new part starts with)."""
+        return self._configs
+
     def tick(self, now_ns: int) -> None:
         """Flush the open chunk if due; close the file if it is big or old enough (the next
         message opens the next one)."""
@@ -228,6 +282,7 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
                         on_file, start)
     result = RecordResult(files=rotation.files)
     warned: set[str] = set()
+    query = _ConfigQuery(session, namespace, config_query_s)
 
     def handle(sample) -> None:
         now = clock()
@@ -247,31 +302,18 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
                     log.warning("not recording non-JSON payloads on more keys: counted, not logged")
             return
         rotation.write(key, payload, now, publish_time_ns(obj, now))
+        query.saw(key)
         result.messages += 1
         if on_message is not None:
             on_message(key)
 
     try:
         with session.declare_subscriber(f"{namespace}/**", zenoh.handlers.FifoChannel(capacity)) as sub:
-            # rigs that published their config before we subscribed: ask their nodes (the sim
-            # node answers on <ns>/rig/*/config), as the monitor does; replies are recorded as
-            # config messages, ahead of the samples drained with them
-            replies = session.get(f"{namespace}/rig/*/config", zenoh.handlers.FifoChannel(4096),
-                                  timeout=config_query_s)
-            replies_until = time.monotonic() + config_query_s + 1.0
             try:
                 while True:
-                    n = 0
-                    if replies is not None:
-                        try:
-                            while (reply := replies.try_recv()) is not None:
-                                if reply.ok is not None:
-                                    handle(reply.ok)
-                                    n += 1
-                        except zenoh.ZError:  # the query is over (zenoh closes the reply channel)
-                            replies = None
-                        if time.monotonic() > replies_until:
-                            replies = None
+                    # rigs that published their config before we subscribed: replies to the
+                    # query are recorded as config messages, ahead of the samples drained with them
+                    n = query.drain(handle, rotation.recorded_configs)
                     while n < _BATCH and (sample := sub.try_recv()) is not None:
                         handle(sample)
                         n += 1

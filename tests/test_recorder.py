@@ -390,3 +390,50 @@ def test_a_part_carries_the_last_valid_config_not_a_rejected_one(tmp_path):
     assert len(r.files) > 3
     first = next(iter(read_recording(r.files[-1])))
     assert first[0] == config_key("r1") and first[1] == good
+
+
+def test_the_config_query_is_sent_again_for_a_rig_whose_config_was_not_seen():
+    # the first query can find no route (the links or the peers' declarations not yet up, or the
+    # rig starts later): a sample of a rig without a config asks again, once per rig, at most
+    # every second; a reply already recorded is not recorded again
+    from hydromon.recorder import _ConfigQuery
+
+    class Reply:
+        def __init__(self, key, payload):
+            self.ok = type("S", (), {"key_expr": key, "payload": type("P", (), {"to_bytes": lambda s: payload})()})()
+
+    class Replies:
+        def __init__(self, items):
+            self.items = list(items)
+
+        def try_recv(self):
+            if self.items:
+                return self.items.pop(0)
+            raise zenoh.ZError("query over")
+
+    class Session:
+        def __init__(self):
+            self.answers, self.queries = [], 0
+
+        def get(self, selector, handler, timeout):
+            assert selector == "hydro/rig/*/config"
+            self.queries += 1
+            return Replies(self.answers)
+
+    now, session, got = [0.0], Session(), []
+    q = _ConfigQuery(session, "hydro", 5.0, clock=lambda: now[0])
+    assert q.drain(got.append, {}) == 0 and session.queries == 1  # at the start: no answer yet
+    for i in range(3):
+        q.saw(sample_key("rig-7"))
+    now[0] = 0.5
+    q.drain(got.append, {})
+    assert session.queries == 1  # not twice in a second
+    session.answers = [Reply(config_key("rig-7"), b"{}"), Reply(config_key("rig-8"), b"{}")]
+    now[0] = 1.0
+    assert q.drain(got.append, {config_key("rig-8"): b"{}"}) == 1 and session.queries == 2
+    assert [str(s.key_expr) for s in got] == [config_key("rig-7")]
+    q.saw(config_key("rig-7"))  # handle() notes the recorded reply
+    q.saw(sample_key("rig-7"))
+    now[0] = 5.0
+    q.drain(got.append, {})
+    assert session.queries == 2  # rig-7 has its config: no more queries
