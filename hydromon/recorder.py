@@ -4,7 +4,8 @@ The node takes an open session (STYLE.md 8) and never opens one. Samples arrive 
 FIFO channel handler (zenoh forbids blocking or calling its API inside callbacks) that the
 worker loop drains; between batches the loop closes the open chunk once it is
 ``flush_interval_ns`` old, so a killed recorder loses well under a second, and rotates
-files by size or age. ``log_time`` is the receive time (``clock()``, wall-clock ns);
+files by size or age. ``log_time`` is the receive time (``clock()``: by default the wall
+clock read once at the start, advanced by the monotonic clock, see :func:`steady_wall_clock`);
 ``publish_time`` is the payload's sample time ``t`` [s] in ns when the payload is a JSON
 object with a numeric ``t``, else the receive time. Rigs publish their config once at their
 start, so at its start the recorder asks the running ones for theirs (``<ns>/rig/*/config``,
@@ -33,11 +34,22 @@ from hydromon.bus import loads
 from hydromon.contract import DEFAULT_NAMESPACE, RigConfig, _check_ns
 from hydromon.mcap_io import RecordingWriter, rig_topic
 
-__all__ = ["record", "RecordResult", "publish_time_ns", "Rotation", "names_a_directory"]
+__all__ = ["record", "RecordResult", "publish_time_ns", "Rotation", "names_a_directory", "steady_wall_clock"]
 
 log = logging.getLogger(__name__)
 _BATCH = 1000  # messages drained between timer checks
 _WARN_KEYS = 20  # keys whose non-JSON payloads are logged (one line each); the rest are counted
+
+
+def steady_wall_clock(wall_ns: Callable[[], int] = time.time_ns,
+                      monotonic_ns: Callable[[], int] = time.monotonic_ns) -> Callable[[], int]:
+    """A clock [ns since the Unix epoch] that reads the wall clock once, now, and then advances
+    with the monotonic clock: a wall-clock step (NTP setting a clock that was off, an operator)
+    during a recording does not move its log times back, which readers order by (the samples
+    after the step then read as a rig restart), nor forward, which a paced replay waits out and
+    which would end --duration or rotate a file at once."""
+    offset = wall_ns() - monotonic_ns()
+    return lambda: offset + monotonic_ns()
 
 
 class _ConfigQuery:
@@ -234,7 +246,7 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
            capacity: int = 65536, poll_s: float = 0.005,
            on_file: Callable[[Path], None] | None = None,
            on_message: Callable[[str], None] | None = None,
-           clock: Callable[[], int] = time.time_ns, config_query_s: float = 5.0) -> RecordResult:
+           clock: Callable[[], int] | None = None, config_query_s: float = 5.0) -> RecordResult:
     """Record ``<namespace>/**`` from ``session`` until ``stop_event`` is set or ``duration_s``.
 
     Parameters
@@ -260,8 +272,8 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
         Called with the path of each file as it is opened.
     on_message : callable or None
         Called with the key of each message once it is handed to the writer (progress).
-    clock : callable
-        Receive time source [ns since the Unix epoch].
+    clock : callable or None
+        Receive time source [ns since the Unix epoch] (None: :func:`steady_wall_clock`).
     config_query_s : float
         How long to wait for the replies to the query that asks the rigs already running for
         their configs [s] (a rig publishes its config once at its start: a recorder started
@@ -274,6 +286,7 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
     if duration_s is not None and not (isinstance(duration_s, (int, float)) and duration_s >= 0):
         raise ValueError(f"duration_s={duration_s!r} must be >= 0 [s]")
     stop = stop_event if stop_event is not None else threading.Event()
+    clock = clock or steady_wall_clock()
     start = clock()
     deadline = None if duration_s is None else start + round(duration_s * 1e9)
     rotation = Rotation(out, namespace, rotate_bytes,

@@ -392,6 +392,23 @@ def test_a_part_carries_the_last_valid_config_not_a_rejected_one(tmp_path):
     assert first[0] == config_key("r1") and first[1] == good
 
 
+def test_the_recorders_clock_does_not_follow_a_wall_clock_step():
+    # a review: log times were time.time_ns() per message, so an NTP step back during a recording
+    # put later samples before earlier ones in log-time order (evaluate then called it a rig
+    # restart), and a step forward was waited out by a paced replay and ended --duration at once
+    from hydromon.recorder import steady_wall_clock
+
+    wall, mono = [1_700_000_000 * NS], [5 * NS]
+    clock = steady_wall_clock(lambda: wall[0], lambda: mono[0])
+    assert clock() == 1_700_000_000 * NS
+    wall[0] -= 3600 * NS  # the wall clock is set back an hour...
+    mono[0] += NS // 100  # ...while 10 ms pass
+    assert clock() == 1_700_000_000 * NS + NS // 100
+    wall[0] += 7200 * NS
+    mono[0] += NS // 100
+    assert clock() == 1_700_000_000 * NS + 2 * (NS // 100)
+
+
 def test_the_config_query_is_sent_again_for_a_rig_whose_config_was_not_seen():
     # the first query can find no route (the links or the peers' declarations not yet up, or the
     # rig starts later): a sample of a rig without a config asks again, once per rig, at most
