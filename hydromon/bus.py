@@ -11,7 +11,9 @@ import argparse
 import json
 import sys
 import socket
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from typing import TypeVar
 
 import orjson
 import zenoh
@@ -19,7 +21,8 @@ import zenoh
 from hydromon.contract import DEFAULT_NAMESPACE, _check_ns
 
 __all__ = [
-    "MODES", "JSON", "open_session", "make_config", "free_tcp_endpoint", "add_bus_arguments",
+    "MODES", "JSON", "open_session", "make_config", "free_tcp_endpoint", "listening_session",
+    "on_a_free_port", "ADDRESS_IN_USE", "add_bus_arguments",
     "session_from_args", "dumps", "loads", "DEFAULT_ROUTER_ENDPOINT",
 ]
 
@@ -27,6 +30,9 @@ MODES = ("peer", "client", "router")
 DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
 JSON = zenoh.Encoding.APPLICATION_JSON
 """Encoding of every contract payload (DESIGN.md section 3)."""
+ADDRESS_IN_USE = "Address already in use"
+"""In the error of a listener whose port is taken (the OS's text for EADDRINUSE, in zenoh's error)."""
+_T = TypeVar("_T")
 
 
 def _endpoints(name: str, values: Iterable[str] | str | None) -> list[str]:
@@ -86,11 +92,53 @@ def open_session(mode: str = "peer", connect: Iterable[str] = (), listen: Iterab
 
 
 def free_tcp_endpoint(host: str = "127.0.0.1") -> str:
-    """``tcp/HOST:PORT`` for a port that was free a moment ago (for tests on loopback)."""
+    """``tcp/HOST:PORT`` for a port that was free a moment ago.
+
+    Racy: the port is free only until someone binds it, and between this call and the listener's
+    bind another process may (a parallel test, or the OS picking it as the local port of an
+    outgoing connection: it is in the ephemeral range). Listeners should use
+    :func:`listening_session` (a session of this process) or :func:`on_a_free_port`.
+    """
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind((host, 0))
         port = s.getsockname()[1]
     return f"tcp/{host}:{port}"
+
+
+@contextmanager
+def listening_session(mode: str = "peer", host: str = "127.0.0.1",
+                      attempts: int = 5) -> Iterator[tuple[zenoh.Session, str]]:
+    """``(session, endpoint)``: a session (``peer`` or ``router``) listening on ``endpoint``, a
+    ``tcp/HOST:PORT`` for other sessions to ``connect`` to; closed on leaving the ``with``.
+
+    The port was found free (:func:`free_tcp_endpoint`); if another process took it before the
+    session bound it, the session is opened on another (:func:`on_a_free_port`). The session's
+    config is a node's (:func:`open_session`). (zenoh-python 1.10 can listen on port 0, but tells
+    the port it bound only in the session's admin space, ``@/<zid>/<mode>``, which is off unless
+    ``adminspace/enabled`` is set.)
+    """
+    if mode not in ("peer", "router"):
+        raise ValueError(f"zenoh mode {mode!r}: a listening session is a peer or a router")
+    session, endpoint = on_a_free_port(lambda ep: open_session(mode, listen=[ep]), host, attempts)
+    with session:
+        yield session, endpoint
+
+
+def on_a_free_port(start: Callable[[str], _T], host: str = "127.0.0.1", attempts: int = 5) -> tuple[_T, str]:
+    """``(start(endpoint), endpoint)`` for a listener on a port found free: ``start`` is called
+    with :func:`free_tcp_endpoint` and, while it raises an error whose text says
+    :data:`ADDRESS_IN_USE` (the port was taken between the pick and the bind), with a new port,
+    ``attempts`` times in all; any other error is raised at once. For a node in another process
+    (``--listen endpoint``), ``start`` waits until the node is up or has exited, and raises with
+    the node's output."""
+    for attempt in range(1, attempts + 1):
+        endpoint = free_tcp_endpoint(host)
+        try:
+            return start(endpoint), endpoint
+        except Exception as exc:
+            if ADDRESS_IN_USE not in str(exc) or attempt == attempts:
+                raise
+    raise ValueError(f"attempts {attempts!r} must be >= 1")
 
 
 def add_bus_arguments(parser: argparse.ArgumentParser, default_mode: str = "peer") -> None:

@@ -26,7 +26,7 @@ from pathlib import Path
 import orjson
 import zenoh
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import listening_session
 from hydromon.contract import DEFAULT_NAMESPACE, _check_ns, parse_rig_key
 from hydromon.fleetfile import FleetSpec, RigSpec, default_fleet
 from hydromon.inprocess import Worker, await_recorder_and_monitor
@@ -169,8 +169,6 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     stop = stop_event if stop_event is not None else threading.Event()
-    endpoint = free_tcp_endpoint()
-    result = DemoResult(endpoint=endpoint, truth={r.id: true_grade(r) for r in spec.rigs})
     health: dict[str, dict] = {}
     stop_sim, stop_mon, stop_rec = threading.Event(), threading.Event(), threading.Event()
     core = MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=log_rig_warning)
@@ -179,7 +177,9 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     print("hydromon demo: loading the numerical kernels (compiled once on a fresh machine, "
           "about a minute)...", file=log, flush=True)
     warm_up()
-    with open_session("peer", listen=[endpoint], multicast=False) as session:
+    # on a free loopback port (another if it was taken before the session bound it)
+    with listening_session("peer") as (session, endpoint):
+        result = DemoResult(endpoint=endpoint, truth={r.id: true_grade(r) for r in spec.rigs})
         sub = session.declare_subscriber(f"{namespace}/rig/*/health", zenoh.handlers.FifoChannel(100_000))
 
         def drain():

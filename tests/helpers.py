@@ -1,7 +1,8 @@
-"""Shared test helpers: polling for a condition, and where a rig's health messages fall."""
+"""Shared test helpers: polling for a condition, where a rig's health messages fall, a taken port."""
 
 from __future__ import annotations
 
+import socket
 import time
 
 import orjson
@@ -19,6 +20,24 @@ def wait_for(pred, timeout_s: float, what: str, alive=None, poll_s: float = 0.02
         if time.monotonic() > deadline:
             raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
         time.sleep(poll_s)
+
+
+def held_port() -> tuple[socket.socket, str]:
+    """A socket listening on a free loopback port, and its ``tcp/127.0.0.1:PORT``: a port another
+    process took (close the socket to give it back)."""
+    s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    s.bind(("127.0.0.1", 0))
+    s.listen()
+    return s, f"tcp/127.0.0.1:{s.getsockname()[1]}"
+
+
+def taken_first(monkeypatch, taken: str) -> None:
+    """The race of ``hydromon.bus.free_tcp_endpoint``, made certain: it hands out ``taken`` (a
+    port someone took after it was found free) first, then free ports."""
+    from hydromon import bus
+
+    picks, real = [taken], bus.free_tcp_endpoint
+    monkeypatch.setattr(bus, "free_tcp_endpoint", lambda host="127.0.0.1": picks.pop(0) if picks else real(host))
 
 
 def health_seqs(rig_id: str, n: int, eval_every: int = 10, first: int = 0) -> list[int]:

@@ -28,7 +28,7 @@ import orjson
 import pytest
 import zenoh
 
-from hydromon.bus import JSON, free_tcp_endpoint, open_session
+from hydromon.bus import JSON, listening_session
 from hydromon.contract import RigConfig
 from hydromon.fleetfile import FleetSpec, RigSpec
 from hydromon.monitornode import REJECT_REASONS, MonitorCore
@@ -165,12 +165,11 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
     good = good_messages()
     clean = _by_rig(MonitorCore(NS).process(good))
     msgs, expected, dropped_seq, bad_after = mixed_messages(good)
-    ep = free_tcp_endpoint()
     log_path = tmp_path / "monitor.log"
     received: list[tuple[str, bytes]] = []
     # this session listens and the monitor process connects to it, so the two meet as soon as
     # the process opens its session (not at one of zenoh's connect retries, every 4 s at most)
-    with open(log_path, "wb") as log, open_session("peer", listen=[ep]) as s:
+    with open(log_path, "wb") as log, listening_session() as (s, ep):
         proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--connect", ep, "--node", "bad-in",
                                  "--stale-after", "600"],
                                 stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,

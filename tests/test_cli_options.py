@@ -15,7 +15,7 @@ import numpy as np
 import orjson
 import pytest
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import listening_session
 from hydromon.cli import main
 from hydromon.fleetfile import FleetSpec, RigSpec
 from hydromon.mcap_io import read_recording, read_rig_config, read_samples
@@ -37,27 +37,24 @@ def _run_monitor_cli(monkeypatch, extra: list[str], rig: str = "cli-r1") -> dict
     # the command's stop event is set by SIGINT/SIGTERM; here the feeding thread sets it
     stop = threading.Event()
     monkeypatch.setattr(monitor_cmd, "threading", types.SimpleNamespace(Event=lambda: stop))
-    ep = free_tcp_endpoint()
     node = f"opt-{rig}"
     got: dict = {}
     errors: list[BaseException] = []
 
-    def feed():
+    def feed(s):
         try:
-            with open_session("peer", connect=[ep]) as s:
-                wait_for(lambda: any(r.ok is not None
-                                     for r in s.liveliness().get(f"{NS}/monitor/{node}", timeout=1.0)),
-                         60, "the monitor's liveliness token", alive=lambda: stop.is_set() and _stopped())
-                from hydromon.simnode import run_sim
+            wait_for(lambda: any(r.ok is not None for r in s.liveliness().get(f"{NS}/monitor/{node}", timeout=1.0)),
+                     60, "the monitor's liveliness token", alive=lambda: stop.is_set() and _stopped())
+            from hydromon.simnode import run_sim
 
-                run_sim(s, FleetSpec(rigs=[RigSpec(id=rig, severity=0.2)]), rate=0, duration=0.5)
+            run_sim(s, FleetSpec(rigs=[RigSpec(id=rig, severity=0.2)]), rate=0, duration=0.5)
 
-                def latest():
-                    for r in s.get(f"{NS}/rig/{rig}/health", timeout=1.0):
-                        if r.ok is not None:
-                            got.update(orjson.loads(r.ok.payload.to_bytes()))
-                    return got.get("seq") == health_seqs(rig, 50)[-1]  # the health after the 50 samples
-                wait_for(latest, 30, f"{rig}'s last health")
+            def latest():
+                for r in s.get(f"{NS}/rig/{rig}/health", timeout=1.0):
+                    if r.ok is not None:
+                        got.update(orjson.loads(r.ok.payload.to_bytes()))
+                return got.get("seq") == health_seqs(rig, 50)[-1]  # the health after the 50 samples
+            wait_for(latest, 30, f"{rig}'s last health")
         except BaseException as exc:  # reported in the main thread
             errors.append(exc)
         finally:
@@ -66,13 +63,15 @@ def _run_monitor_cli(monkeypatch, extra: list[str], rig: str = "cli-r1") -> dict
     def _stopped():
         raise AssertionError("the monitor stopped early")
 
-    th = threading.Thread(target=feed, daemon=True)
-    th.start()
-    try:
-        code = main(["monitor", "--listen", ep, "--node", node, "--duration", "90", *extra])
-    finally:
-        stop.set()
-        th.join(30)
+    # the feeder's session listens (on a free port: listening_session) and the monitor connects to it
+    with listening_session() as (s, ep):
+        th = threading.Thread(target=feed, args=(s,), daemon=True)
+        th.start()
+        try:
+            code = main(["monitor", "--connect", ep, "--node", node, "--duration", "90", *extra])
+        finally:
+            stop.set()
+            th.join(30)
     assert not th.is_alive()
     if errors:
         raise errors[0]
@@ -106,7 +105,7 @@ def test_monitor_ranges_option_chooses_what_the_valve_is_graded_on(monkeypatch, 
 def test_monitor_ranges_option_rejects_a_bad_file_before_the_bus(tmp_path, capsys):
     bad = tmp_path / "bad.json"
     bad.write_text('{"params": {"nope": {}}}')
-    assert main(["monitor", "--ranges", str(bad), "--listen", free_tcp_endpoint(), "--duration", "0.1"]) == 2
+    assert main(["monitor", "--ranges", str(bad), "--listen", "tcp/127.0.0.1:0", "--duration", "0.1"]) == 2
     assert str(bad) in capsys.readouterr().err
 
 
@@ -147,23 +146,21 @@ def _record_while_publishing(tmp_path, capsys, extra: list[str], n: int, pause_e
     from hydromon.contract import config_key, sample_key
 
     stop = threading.Event()
-    ep = free_tcp_endpoint()
     out = tmp_path / "rec.mcap"
     errors: list[BaseException] = []
 
-    def feed():
+    def feed(s):
         try:
-            with open_session("peer", connect=[ep]) as s:
-                pub = s.declare_publisher(sample_key("rot"))
-                wait_for(lambda: pub.matching_status.matching, 60, "the recorder's subscription")
-                s.put(config_key("rot"), orjson.dumps(RigConfig(p_s=11e6).model_dump(mode="json")))
-                for i in range(n):
-                    pub.put(orjson.dumps({"seq": i, "t": i * 0.01, "ug": 2.0, "x1": 0.001 * i, "x3": 6e6,
-                                          "x4": 5e6, "x5": 1e-5}))
-                    if pause_every and (i + 1) % pause_every == 0:
-                        stop.wait(pause_s)
-                # the recorder has them all once its message count says so: poll its files
-                wait_for(lambda: _on_disk(out) >= n + 1, 30, "every message on disk")
+            pub = s.declare_publisher(sample_key("rot"))
+            wait_for(lambda: pub.matching_status.matching, 60, "the recorder's subscription")
+            s.put(config_key("rot"), orjson.dumps(RigConfig(p_s=11e6).model_dump(mode="json")))
+            for i in range(n):
+                pub.put(orjson.dumps({"seq": i, "t": i * 0.01, "ug": 2.0, "x1": 0.001 * i, "x3": 6e6,
+                                      "x4": 5e6, "x5": 1e-5}))
+                if pause_every and (i + 1) % pause_every == 0:
+                    stop.wait(pause_s)
+            # the recorder has them all once its message count says so: poll its files
+            wait_for(lambda: _on_disk(out) >= n + 1, 30, "every message on disk")
         except BaseException as exc:
             errors.append(exc)
         finally:
@@ -171,14 +168,16 @@ def _record_while_publishing(tmp_path, capsys, extra: list[str], n: int, pause_e
 
     monkeypatch = pytest.MonkeyPatch()
     monkeypatch.setattr(record_cmd, "threading", types.SimpleNamespace(Event=lambda: stop))
-    th = threading.Thread(target=feed, daemon=True)
-    th.start()
-    try:
-        code = main(["record", "--out", str(out), "--listen", ep, "--duration", "90", *extra])
-    finally:
-        stop.set()
-        th.join(30)
-        monkeypatch.undo()
+    # the feeder's session listens (on a free port: listening_session) and the recorder connects to it
+    with listening_session() as (s, ep):
+        th = threading.Thread(target=feed, args=(s,), daemon=True)
+        th.start()
+        try:
+            code = main(["record", "--out", str(out), "--connect", ep, "--duration", "90", *extra])
+        finally:
+            stop.set()
+            th.join(30)
+            monkeypatch.undo()
     assert not th.is_alive()
     if errors:
         raise errors[0]
@@ -318,7 +317,6 @@ def test_a_replay_window_carries_each_rigs_config_from_before_it(tmp_path, capsy
 @pytest.mark.network
 @pytest.mark.timeout(120)
 def test_replay_on_the_bus_publishes_the_window_only(two_rigs):
-    ep = free_tcp_endpoint()
     got: list[tuple[str, int]] = []
     lock = threading.Lock()
 
@@ -326,7 +324,7 @@ def test_replay_on_the_bus_publishes_the_window_only(two_rigs):
         with lock:
             got.append((str(s.key_expr), orjson.loads(s.payload.to_bytes()).get("seq", -1)))
 
-    with open_session("peer", listen=[ep]) as sess:
+    with listening_session() as (sess, ep):
         sub = sess.declare_subscriber(f"{NS}/rig/*/*", on_sample)
         try:
             assert main(["replay", str(two_rigs), "--connect", ep, "--rate", "0", "--quiet", "--wait", "30",

@@ -7,6 +7,7 @@ from __future__ import annotations
 import io
 import math
 import os
+import socket
 
 import numpy as np
 import pytest
@@ -321,11 +322,13 @@ def test_record_checks_its_options_before_the_bus(tmp_path, capsys, no_bus, extr
 def test_a_client_whose_router_is_not_up_is_one_error_line_and_status_1(tmp_path, capsys, command):
     # fault injection: a node started in client mode before its router (a plant's boot order) died
     # with a zenoh traceback, exit status 1
-    from hydromon.bus import free_tcp_endpoint
-
-    ep = free_tcp_endpoint()  # nobody listens there
-    args = [a.replace("{tmp}", str(tmp_path)) for a in command] + ["--mode", "client", "--connect", ep]
-    assert main(args) == 1
+    # a port this test holds bound but never listens on: a connect is refused, and no other
+    # process can start listening there meanwhile (as on a port that was merely free a moment ago)
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as held:
+        held.bind(("127.0.0.1", 0))
+        ep = f"tcp/127.0.0.1:{held.getsockname()[1]}"
+        args = [a.replace("{tmp}", str(tmp_path)) for a in command] + ["--mode", "client", "--connect", ep]
+        assert main(args) == 1
     cap = capsys.readouterr()
     err = cap.err.strip().splitlines()[-1]
     assert "Traceback" not in cap.err and err.startswith(f"hydromon {command[0]}: error: cannot open the zenoh session")

@@ -26,14 +26,14 @@ import orjson
 import pytest
 import zenoh
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import on_a_free_port, open_session
 from hydromon.contract import Health
 from hydromon.demo import true_grade
 from hydromon.fleetfile import default_fleet
 from hydromon.mcap_io import MAGIC, read_recording, recover
 from hydromon.monitornode import run_monitor
 from hydromon.replay import replay_direct
-from helpers import health_seqs, wait_for  # noqa: F401
+from helpers import health_seqs, held_port, taken_first, wait_for  # noqa: F401
 
 CLI = [sys.executable, "-m", "hydromon.cli"]
 SECONDS = 30
@@ -58,6 +58,16 @@ class Procs:
                              env={**os.environ, "PYTHONUNBUFFERED": "1"})
         self.procs[name] = p
         return p
+
+    def start_listening(self, name: str, *args: str, ready: str, timeout_s: float = 60) -> str:
+        """Start a node with ``--listen tcp/127.0.0.1:PORT`` on a free port and wait for ``ready``
+        in its output; return the endpoint. If another process took the port before the node
+        bound it (it exits: "Address already in use"), start it again on another port."""
+        def start(ep):
+            self.start(name, *args, "--listen", ep)
+            wait_for(lambda: ready in self.log(name), timeout_s, f"the {name}", alive=self.check_alive)
+
+        return on_a_free_port(start)[1]
 
     def log(self, name: str) -> str:
         return (self.dir / f"{name}.log").read_text(errors="replace")
@@ -130,14 +140,12 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
     _warm_kernels()
     spec = default_fleet()
     truth = {r.id: true_grade(r) for r in spec.rigs}
-    ep = free_tcp_endpoint()
-    bus = ["--mode", "client", "--connect", ep]
     out = tmp_path / "e2e.mcap"
     procs = Procs(tmp_path)
     live: list[tuple[str, bytes]] = []
     try:
-        procs.start("router", "router", "--listen", ep)
-        wait_for(lambda: "listening on" in procs.log("router"), 60, "the router", alive=procs.check_alive)
+        ep = procs.start_listening("router", "router", ready="listening on")
+        bus = ["--mode", "client", "--connect", ep]
         # the recording is compared with direct replay, which has no clock: no re-sent stale health
         # if this machine is slow to stop the monitor after the sim (--stale-after)
         procs.start("monitor", "monitor", "--node", "e2e", "--stale-after", "600", *bus)
@@ -219,5 +227,22 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
         assert (c.accepted, c.configs, c.rejected_total, c.dropped_seq, c.gaps) == (5 * N, 5, 0, 0, 0)
         assert replayed == stored
         assert "15005 messages on 10 key(s), 1 pass(es)" in procs.log("replay")
+    finally:
+        procs.close()
+
+
+@pytest.mark.network
+@pytest.mark.timeout(120)
+def test_a_router_process_whose_port_was_taken_is_started_again_on_another(tmp_path, monkeypatch):
+    held, taken = held_port()
+    taken_first(monkeypatch, taken)
+    procs = Procs(tmp_path)
+    try:
+        with held:
+            ep = procs.start_listening("router", "router", ready="listening on")
+        assert ep != taken and f"listening on {ep}" in procs.log("router")
+        with open_session("client", connect=[ep]) as s:  # it is up there
+            assert s.info.routers_zid()
+        assert procs.stop("router") == 0
     finally:
         procs.close()

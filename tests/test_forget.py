@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_monitorcore_batching import _payload
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import listening_session, open_session
 from hydromon.contract import RigConfig
 from hydromon.monitorcore import MonitorCore
 from hydromon.monitornode import SilenceWatch, run_monitor
@@ -108,9 +108,8 @@ def test_silence_watch_forgets_after_its_time_only():
 @pytest.mark.network
 @pytest.mark.timeout(60)
 def test_monitor_node_forgets_a_silent_rig_and_says_so(caplog):
-    ep = free_tcp_endpoint()
     core = MonitorCore(eval_every=3)
-    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as pub_s, \
+    with listening_session() as (mon_s, ep), open_session("peer", connect=[ep]) as pub_s, \
             caplog.at_level(logging.WARNING, logger="hydromon.monitornode"):
         stop = threading.Event()
         mon = threading.Thread(target=lambda: run_monitor(mon_s, stop_event=stop, node_name="m5", core=core,

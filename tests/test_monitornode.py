@@ -14,7 +14,7 @@ import zenoh
 from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import listening_session, open_session
 from hydromon.contract import GRADES, PARAM_NAMES, SAMPLE_LIMITS, SEQ_MAX, Health, RigConfig, Sample, health_key
 from hydromon.edge import VALUE_LIMITS, sim_samples
 from hydromon.fleetfile import FleetSpec, default_fleet
@@ -526,10 +526,9 @@ def test_parse_sample_rejects_values_just_beyond_the_contracts_ranges(ints):
 @pytest.mark.network
 @pytest.mark.timeout(90)
 def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
-    ep = free_tcp_endpoint()
     seconds = 8.0
     n = int(seconds * 100)
-    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as sim_s, \
+    with listening_session() as (mon_s, ep), open_session("peer", connect=[ep]) as sim_s, \
             open_session("peer", connect=[ep]) as obs_s:
         sub = obs_s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(100000))
         stop, result = threading.Event(), {}
@@ -577,8 +576,7 @@ def test_sim_and_monitor_on_loopback_give_the_true_grades_and_answer_queries():
 def test_a_rig_that_stops_publishing_goes_stale_on_the_bus_and_on_the_query():
     spec = FleetSpec(rigs=SPEC.rigs[:1])
     rig = spec.ids[0]
-    ep = free_tcp_endpoint()
-    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as sim_s, \
+    with listening_session() as (mon_s, ep), open_session("peer", connect=[ep]) as sim_s, \
             open_session("peer", connect=[ep]) as obs_s:
         sub = obs_s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(10000))
         stop = threading.Event()
@@ -612,10 +610,9 @@ def test_a_rig_that_stops_publishing_goes_stale_on_the_bus_and_on_the_query():
 @pytest.mark.timeout(120)
 def test_a_monitor_in_namespace_site2_on_loopback_ignores_hydro_traffic():
     spec = FleetSpec(rigs=SPEC.rigs[:2])
-    ep = free_tcp_endpoint()
     seconds = 2.0
     n = int(seconds * 100)
-    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as sim_s, \
+    with listening_session() as (mon_s, ep), open_session("peer", connect=[ep]) as sim_s, \
             open_session("peer", connect=[ep]) as obs_s:
         site2_sub = obs_s.declare_subscriber("site2/rig/*/health", zenoh.handlers.FifoChannel(10000))
         hydro_sub = obs_s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(10000))
@@ -680,8 +677,7 @@ class _RepliesSeen:
 def test_a_monitor_started_late_asks_the_running_rigs_for_their_configs():
     spec = FleetSpec(config=RigConfig(F_L=3500.0, p_s=11e6), rigs=SPEC.rigs[:2])
     config_keys = sorted(f"{NS}/rig/{i}/config" for i in spec.ids)
-    ep = free_tcp_endpoint()
-    with open_session("peer", listen=[ep]) as sim_s, open_session("peer", connect=[ep]) as mon_s, \
+    with listening_session() as (sim_s, ep), open_session("peer", connect=[ep]) as mon_s, \
             open_session("peer", connect=[ep]) as probe_s:
         probe = probe_s.declare_subscriber(f"{NS}/rig/*/config", zenoh.handlers.FifoChannel(64))
         # the sim's session knows of the probe's subscription before the sim publishes
@@ -760,10 +756,9 @@ def test_rejection_log_reports_a_last_burst_without_a_further_rejection(caplog):
 @pytest.mark.network
 @pytest.mark.timeout(60)
 def test_monitor_node_reports_its_suppressed_rejections_when_it_stops(caplog):
-    ep = free_tcp_endpoint()
     log = RateLimitedLog(interval=3600.0)  # nothing falls due while it runs: only the stop reports
     core = MonitorCore(on_reject=log)
-    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as pub_s, \
+    with listening_session() as (mon_s, ep), open_session("peer", connect=[ep]) as pub_s, \
             caplog.at_level("WARNING", logger="hydromon.monitornode"):
         stop = threading.Event()
         mon = threading.Thread(target=lambda: run_monitor(mon_s, stop_event=stop, node_name="m4", core=core),
@@ -794,13 +789,12 @@ def test_monitor_command_runs_for_its_duration_and_reports_its_counts():
     import subprocess
     import sys
 
-    ep = free_tcp_endpoint()
     # this session listens and the monitor connects to it: the monitor's session is up as soon as
     # it opens. The other way round (monitor --listen, this session --connect before the process
     # listened), zenoh's connect retries back off to every 4 s, and up to 4 s of the monitor's
     # 6 s went by before this session reached it: under load the 600 samples then did not all get
     # in before the monitor stopped (reproduced: "540 samples, 54 health messages").
-    with open_session("peer", listen=[ep]) as s:
+    with listening_session() as (s, ep):
         proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--connect", ep, "--duration", "6",
                                  "--node", "cli-mon"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                 env={**os.environ, "PYTHONUNBUFFERED": "1"})

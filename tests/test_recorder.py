@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import zenoh
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import listening_session, open_session
 from hydromon.contract import RigConfig, Sample, config_key, sample_key
 from hydromon.mcap_io import (
     MAGIC, TruncatedRecording, read_recording, read_rig_config, read_samples, recover,
@@ -137,9 +137,8 @@ def test_record_validates_its_arguments(tmp_path):
 @pytest.mark.network
 @pytest.mark.timeout(60)
 def test_record_over_a_real_zenoh_session_in_a_thread(tmp_path):
-    ep = free_tcp_endpoint()
     n = 200
-    with open_session("peer", listen=[ep]) as rec_session, open_session("peer", connect=[ep]) as pub_session:
+    with listening_session() as (rec_session, ep), open_session("peer", connect=[ep]) as pub_session:
         got = threading.Event()
         count = {"n": 0}
 
@@ -215,9 +214,8 @@ def test_a_recorder_started_late_asks_the_running_rigs_for_their_configs(tmp_pat
 def test_a_burst_of_bogus_keys_and_configs_does_not_flood_the_recorders_log(tmp_path, caplog):
     # fault injection: 50,000 distinct bogus rig ids with non-JSON payloads made 50,000 log
     # lines (one per key, and a set of every key held); invalid configs, one line each
-    ep = free_tcp_endpoint()
     n = 500
-    with open_session("peer", listen=[ep]) as rec_session, open_session("peer", connect=[ep]) as pub_session:
+    with listening_session() as (rec_session, ep), open_session("peer", connect=[ep]) as pub_session:
         stop, result, probe_in = threading.Event(), {}, threading.Event()
 
         def on_message(key):
@@ -295,9 +293,8 @@ def _wait_subscribed(pub, proc, log_path):
 @pytest.mark.network
 @pytest.mark.timeout(90)
 def test_sigkilled_recorder_loses_at_most_its_last_second(tmp_path):
-    ep = free_tcp_endpoint()
     out = tmp_path / "killed.mcap"
-    with open(tmp_path / "record.log", "wb") as log, open_session("peer", listen=[ep]) as session:
+    with open(tmp_path / "record.log", "wb") as log, listening_session() as (session, ep):
         proc = _record_process(out, ep, log)
         try:
             pub = session.declare_publisher(sample_key("k1"), congestion_control=BLOCK)
@@ -339,9 +336,8 @@ def test_sigkilled_recorder_loses_at_most_its_last_second(tmp_path):
 @pytest.mark.network
 @pytest.mark.timeout(90)
 def test_sigterm_stops_the_recorder_cleanly_with_a_complete_file(tmp_path):
-    ep = free_tcp_endpoint()
     out = tmp_path / "clean.mcap"
-    with open(tmp_path / "record.log", "wb") as log, open_session("peer", listen=[ep]) as session:
+    with open(tmp_path / "record.log", "wb") as log, listening_session() as (session, ep):
         proc = _record_process(out, ep, log)
         try:
             pub = session.declare_publisher(sample_key("k2"), congestion_control=BLOCK)
@@ -368,7 +364,7 @@ def test_record_command_stops_after_its_duration_and_prints_the_file(tmp_path, c
     from hydromon.cli import main as cli_main
 
     out = tmp_path / "sub" / "short.mcap"
-    assert cli_main(["record", "--out", str(out), "--listen", free_tcp_endpoint(), "--duration", "0.3"]) == 0
+    assert cli_main(["record", "--out", str(out), "--listen", "tcp/127.0.0.1:0", "--duration", "0.3"]) == 0
     captured = capsys.readouterr()
     assert captured.out.split() == [str(out)]
     assert f"writing {out}" in captured.err

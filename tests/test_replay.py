@@ -11,7 +11,7 @@ import numpy as np
 import orjson
 import pytest
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import listening_session, open_session
 from hydromon.contract import Health
 from hydromon.fleetfile import default_fleet
 from hydromon.mcap_io import CorruptRecording, RecordingWriter, read_recording
@@ -97,9 +97,8 @@ def test_cli_direct_twice_gives_identical_files(recording, tmp_path, capsys):
 @pytest.mark.timeout(90)
 def test_bus_replay_into_the_monitor_gives_the_direct_health_on_every_pass(recording):
     direct, _ = replay_direct(recording)
-    ep = free_tcp_endpoint()
     got: list[tuple[str, bytes]] = []
-    with open_session("peer", listen=[ep]) as mon_s, open_session("peer", connect=[ep]) as rep_s:
+    with listening_session() as (mon_s, ep), open_session("peer", connect=[ep]) as rep_s:
         stop, result = threading.Event(), {}
         mon = threading.Thread(target=lambda: result.update(core=run_monitor(
             mon_s, stop_event=stop, on_health=lambda k, p: got.append((k, p)), stale_after_s=None)), daemon=True)

@@ -4,7 +4,7 @@ import threading
 
 import pytest
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import listening_session, open_session
 from hydromon.fleetfile import default_fleet
 from hydromon.monitornode import MonitorCore, rig_pattern, run_monitor
 from hydromon.simnode import run_sim
@@ -23,9 +23,8 @@ def test_rig_pattern_validation():
 @pytest.mark.timeout(120)
 def test_two_monitors_split_the_rigs_between_them():
     spec = default_fleet()  # table4-g1 .. table4-g5
-    ep = free_tcp_endpoint()
     seconds = 3.0
-    with open_session("peer", listen=[ep]) as sim_s, open_session("peer", connect=[ep]) as a_s, \
+    with listening_session() as (sim_s, ep), open_session("peer", connect=[ep]) as a_s, \
             open_session("peer", connect=[ep]) as b_s:
         shards = {"a": (a_s, "table4-g1"), "b": (b_s, "table4-g$*")}  # g1 alone; every table4-g rig
         stop, cores = threading.Event(), {n: MonitorCore() for n in shards}

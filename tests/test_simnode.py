@@ -14,9 +14,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from hydromon import simnode
-from hydromon.bus import free_tcp_endpoint, loads, make_config, open_session
+from hydromon.bus import listening_session, loads, make_config, open_session
 from hydromon.cli import build_parser
-from hydromon.commands.router import run_router
 from hydromon.commands.sim import build_fleet
 from hydromon.contract import RigConfig, Sample
 from hydromon.fleetfile import (
@@ -285,8 +284,7 @@ def _check_stream(samples, spec: FleetSpec, n: int) -> None:
 def test_loopback_two_rigs_every_sample_in_order():
     spec = FleetSpec(config=RigConfig(F_L=4200.0), seed=3,
                      rigs=[RigSpec(id="r-1", severity=0.1, noise="realistic"), RigSpec(id="r-2", table4=5)])
-    ep = free_tcp_endpoint()
-    with open_session("peer", listen=[ep]) as pub_s, open_session("peer", connect=[ep]) as sub_s:
+    with listening_session() as (pub_s, ep), open_session("peer", connect=[ep]) as sub_s:
         sub = sub_s.declare_subscriber("hydro/rig/**", zenoh.handlers.FifoChannel(1000))
         _handshake(pub_s, sub_s)
         stats: list = []
@@ -304,13 +302,8 @@ def test_loopback_two_rigs_every_sample_in_order():
 @pytest.mark.network
 @pytest.mark.timeout(60)
 def test_through_a_router_with_config_queries_and_changes():
-    ep = free_tcp_endpoint()
-    stop_router, ready = threading.Event(), threading.Event()
-    router = threading.Thread(target=run_router, args=([ep],),
-                              kwargs=dict(stop_event=stop_router, on_ready=lambda s: ready.set()))
-    router.start()
-    try:
-        assert ready.wait(10)
+    # a router in this process (what ``hydromon router`` runs), on a free port
+    with listening_session("router") as (_router, ep):
         spec = default_fleet()
         with zenoh.open(make_config("client", connect=[ep])) as sim_s, \
                 open_session("client", connect=[ep]) as sub_s:
@@ -337,10 +330,6 @@ def test_through_a_router_with_config_queries_and_changes():
             assert not th.is_alive() and stats[0].configs_published == 6
             with pytest.raises(ValueError, match="no rig 'nope'"):
                 node.change_rig("nope", config=new)
-    finally:
-        stop_router.set()
-        router.join(20)
-    assert not router.is_alive()
 
 
 def test_node_arguments_are_checked():
@@ -417,6 +406,5 @@ def test_file_writers_report_progress_on_long_runs():
 def test_cli_sim_and_router_stop_by_themselves():
     from hydromon.cli import main
 
-    ep = free_tcp_endpoint()
-    assert main(["router", "--listen", ep, "--duration", "0.2"]) == 0
-    assert main(["sim", "--listen", ep, "--rigs", "3", "--rate", "0", "--duration", "0.3"]) == 0
+    assert main(["router", "--listen", "tcp/127.0.0.1:0", "--duration", "0.2"]) == 0
+    assert main(["sim", "--listen", "tcp/127.0.0.1:0", "--rigs", "3", "--rate", "0", "--duration", "0.3"]) == 0

@@ -44,9 +44,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     import tempfile
 
 
-    from hydromon.bus import free_tcp_endpoint, open_session
+    from hydromon.bus import listening_session, on_a_free_port
 
-    ep_p, ep_a = free_tcp_endpoint(), free_tcp_endpoint()
     first_rig = "rig-" + "0" * max(4, len(str(n_rigs - 1)))
     samples: list = []
     health: list = []
@@ -64,16 +63,27 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     # the probe timestamps in zenoh callbacks: a garbage collection in this process would
     # delay them and count as latency; collections run in the sleeps below instead
     with tempfile.TemporaryDirectory(prefix="hydromon-bench-") as tmp, \
-            open_session("peer", listen=[ep_p]) as probe, QuietGC() as quiet:
+            listening_session("peer") as (probe, ep_p), QuietGC() as quiet:
         sub_s = probe.declare_subscriber(f"hydro/rig/{first_rig}/sample", on_sample)
         sub_h = probe.declare_subscriber("hydro/rig/*/health", on_health)
         mon_log, sim_log = os.path.join(tmp, "monitor.log"), os.path.join(tmp, "sim.log")
         with open(mon_log, "w") as ml, open(sim_log, "w") as sl:
-            mon = subprocess.Popen(py + ["monitor", "--listen", ep_a, "--connect", ep_p, "--node", "bench",
-                                         "--eval-every", str(eval_every), *monitor_args], stderr=ml, stdout=subprocess.DEVNULL)
+            def start_monitor(ep_a):
+                mon = subprocess.Popen(py + ["monitor", "--listen", ep_a, "--connect", ep_p, "--node", "bench",
+                                             "--eval-every", str(eval_every), *monitor_args],
+                                       stderr=ml, stdout=subprocess.DEVNULL)
+                try:
+                    _wait_for(mon_log, "hydromon monitor: node", mon, 120)
+                except BaseException:
+                    _stop(mon)
+                    raise
+                return mon
+
+            # A: a port found free a moment ago, again on another if it was taken before the
+            # monitor bound it (the monitor exits: "Address already in use")
+            mon, ep_a = on_a_free_port(start_monitor)
             sim = None
             try:
-                _wait_for(mon_log, "hydromon monitor: node", mon, 120)
                 time.sleep(1.0)  # subscribers declared and routes known
                 sim = subprocess.Popen(py + ["sim", "--rigs", str(n_rigs), "--rate", "1", "--connect", ep_a,
                                              "--connect", ep_p, *sim_args], stderr=sl, stdout=subprocess.DEVNULL)

@@ -12,14 +12,15 @@ import orjson
 from .procs import _cpu_seconds, _stop
 
 
-def _transport_sub(endpoint: str, seconds: float, ready, out) -> None:
+def _transport_sub(seconds: float, ready, out) -> None:
     import zenoh
 
-    from hydromon.bus import open_session
+    from hydromon.bus import listening_session
 
-    with open_session("peer", listen=[endpoint]) as session:
+    # on a free port (another if it was taken before the bind); the parent learns it from `ready`
+    with listening_session("peer") as (session, endpoint):
         sub = session.declare_subscriber("hydro/rig/*/sample", zenoh.handlers.FifoChannel(65536))
-        ready.put(True)
+        ready.put(endpoint)
         first = sub.recv()  # the publisher has started
         t0 = time.perf_counter()
         c0 = time.process_time()
@@ -73,17 +74,14 @@ def bench_transport(seconds: float = 5.0, n_keys: int = 100) -> dict:
     ``live``), and a raw zenoh-python loop putting pre-built sample payloads (``raw``: what
     zenoh-python itself carries on this machine).
     """
-    from hydromon.bus import free_tcp_endpoint
-
     ctx = mp.get_context("spawn")
 
     def measure(start_pub):
-        endpoint = free_tcp_endpoint()
         ready, out_sub = ctx.Queue(), ctx.Queue()
-        sub = ctx.Process(target=_transport_sub, args=(endpoint, seconds, ready, out_sub), daemon=True)
+        sub = ctx.Process(target=_transport_sub, args=(seconds, ready, out_sub), daemon=True)
         sub.start()
         try:
-            ready.get(timeout=60)
+            endpoint = ready.get(timeout=60)
             stop_pub = start_pub(endpoint)
             try:
                 rs = out_sub.get(timeout=seconds + 180)

@@ -1,0 +1,91 @@
+"""Listening on loopback without losing the race for the port.
+
+``free_tcp_endpoint`` frees the port it found before the listener binds it: another process
+(a parallel test, an outgoing connection given it as its local port) can take it in between,
+and the listener fails with "Address already in use". ``on_a_free_port`` then starts the
+listener again on another port: ``listening_session`` for a session of this process, and the
+tests' helpers for a node process started with ``--listen``.
+"""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from hydromon import bus
+from hydromon.bus import ADDRESS_IN_USE, listening_session, on_a_free_port, open_session
+from helpers import held_port, taken_first, wait_for
+
+pytestmark = pytest.mark.network
+
+
+def _port_is_bound(ep: str) -> bool:
+    """Whether something listens on (or is bound to) the port: a TIME_WAIT left by a closed
+    connection does not count (SO_REUSEADDR)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("127.0.0.1", int(ep.rsplit(":", 1)[1])))
+        except OSError:
+            return True
+    return False
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("mode", ["peer", "router"])
+def test_a_listening_session_comes_up_on_another_port_when_its_port_was_taken(monkeypatch, mode):
+    held, taken = held_port()
+    taken_first(monkeypatch, taken)
+    with held, listening_session(mode) as (s, ep), listening_session(mode) as (_, other):
+        host, port = ep.removeprefix("tcp/").rsplit(":", 1)
+        assert host == "127.0.0.1" and int(port) > 0 and ep != taken and other not in (ep, taken)
+        assert _port_is_bound(ep)
+        with open_session("client" if mode == "router" else "peer", connect=[ep]) as c:
+            sub = s.declare_subscriber("hydro/port-test")
+            pub = c.declare_publisher("hydro/port-test")
+            wait_for(lambda: pub.matching_status.matching, 20, "the subscription across the link")
+            pub.put(b"x")
+            assert sub.recv().payload.to_bytes() == b"x"
+    assert not _port_is_bound(ep)  # closed with the session
+    with pytest.raises(ValueError, match="peer or a router"), listening_session("client"):
+        pass
+
+
+@pytest.mark.timeout(60)
+def test_a_taken_listen_port_is_a_connection_error_saying_so():
+    held, ep = held_port()
+    with held, pytest.raises(ConnectionError) as err:
+        open_session("peer", listen=[ep])
+    assert ep in str(err.value) and ADDRESS_IN_USE in str(err.value)
+
+
+@pytest.mark.timeout(60)
+def test_on_a_free_port_starts_again_on_another_port_when_its_port_was_taken(monkeypatch):
+    held, taken = held_port()
+    taken_first(monkeypatch, taken)
+    calls = []
+
+    def start(ep):
+        calls.append(ep)
+        return open_session("peer", listen=[ep])
+
+    with held:
+        session, ep = on_a_free_port(start)
+        with session:
+            assert calls == [taken, ep] and ep != taken and _port_is_bound(ep)
+
+        # any other error is not retried; a port taken every time fails after `attempts`
+        def refused(ep):
+            calls.append(ep)
+            raise ValueError("no")
+
+        calls.clear()
+        with pytest.raises(ValueError, match="no"):
+            on_a_free_port(refused)
+        assert len(calls) == 1
+        monkeypatch.setattr(bus, "free_tcp_endpoint", lambda host="127.0.0.1": taken)
+        calls.clear()
+        with pytest.raises(ConnectionError, match=ADDRESS_IN_USE):
+            on_a_free_port(start, attempts=3)
+        assert calls == [taken] * 3
