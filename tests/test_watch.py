@@ -12,7 +12,7 @@ import orjson
 import pytest
 from helpers import wait_for
 
-from hydromon.bus import free_tcp_endpoint, open_session
+from hydromon.bus import listening_session
 from hydromon.fleetfile import default_fleet
 from hydromon.monitornode import MonitorCore, run_monitor
 from hydromon.simnode import run_sim
@@ -83,10 +83,9 @@ def _watch(*args, timeout=90):
 @pytest.mark.timeout(180)
 def test_watch_once_asks_the_running_monitor():
     spec = default_fleet()
-    ep = free_tcp_endpoint()
     core = MonitorCore()
     stop = threading.Event()
-    with open_session("peer", listen=[ep]) as session:
+    with listening_session() as (session, ep):
         mon = threading.Thread(target=run_monitor, args=(session,), daemon=True,
                                kwargs={"stop_event": stop, "core": core, "stale_after_s": None})
         mon.start()
@@ -113,8 +112,7 @@ def test_watch_once_asks_the_running_monitor():
 @pytest.mark.network
 @pytest.mark.timeout(120)
 def test_watch_once_with_no_monitor_says_so():
-    ep = free_tcp_endpoint()
-    with open_session("peer", listen=[ep]):
+    with listening_session() as (_, ep):
         r = _watch("--once", "--wait", "0.5", "--connect", ep)
     assert r.returncode == 1
     assert "no monitor answered" in r.stderr and r.stdout == ""
