@@ -183,9 +183,8 @@ def test_a_recorder_started_late_asks_the_running_rigs_for_their_configs(tmp_pat
     # its start), so the recording was evaluated and replayed with the default rig constants
     # (`hydromon sim --fleet` with p_s 16 MPa, F_L 6 kN, then `hydromon record`: m 287 kg, not 125).
     # The sim node answers late joiners on <ns>/rig/*/config, as the monitor uses.
-    ep = free_tcp_endpoint()
     cfg = RigConfig(K_f=42.0, p_s=16e6).model_dump_json().encode()
-    with open_session("peer", listen=[ep]) as rig_session, open_session("peer", connect=[ep]) as rec_session:
+    with listening_session() as (rig_session, ep), open_session("peer", connect=[ep]) as rec_session:
         queryable = rig_session.declare_queryable(
             "hydro/rig/*/config", lambda q: q.reply(config_key("rig-7"), cfg))
         stop, result, count = threading.Event(), {}, {"n": 0}
