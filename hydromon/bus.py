@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import socket
 from collections.abc import Callable, Iterable, Iterator
@@ -74,6 +75,15 @@ def make_config(mode: str = "peer", connect: Iterable[str] = (), listen: Iterabl
     return conf
 
 
+_SOURCE_PATH = re.compile(r"\s+at (?:/|[A-Za-z]:\\)\S*?\.rs:\d+(?::\d+)?\.?")
+
+
+def _without_source_paths(reason: str) -> str:
+    """zenoh's error text without the Rust source locations it appends (`` at /root/.cargo/...
+    /tcp.rs:61``, one per nested error): a user reads what failed, not where in zenoh."""
+    return _SOURCE_PATH.sub("", reason).strip()
+
+
 def open_session(mode: str = "peer", connect: Iterable[str] = (), listen: Iterable[str] = (),
                  multicast: bool = False) -> zenoh.Session:
     """Open a zenoh session (see :func:`make_config`); close it with ``with`` or ``.close()``.
@@ -87,7 +97,7 @@ def open_session(mode: str = "peer", connect: Iterable[str] = (), listen: Iterab
         return zenoh.open(conf)
     except zenoh.ZError as exc:
         where = "".join(f", {name} {', '.join(eps)}" for name, eps in (("connect", connect), ("listen", listen)) if eps)
-        reason = str(exc).split("  at ")[0].strip()  # without the Rust source location
+        reason = _without_source_paths(str(exc))
         raise ConnectionError(f"cannot open the zenoh session ({mode}{where}): {reason}") from None
 
 

@@ -89,3 +89,16 @@ def test_on_a_free_port_starts_again_on_another_port_when_its_port_was_taken(mon
         with pytest.raises(ConnectionError, match=ADDRESS_IN_USE):
             on_a_free_port(start, attempts=3)
         assert calls == [taken] * 3
+
+
+def test_zenoh_errors_lose_their_rust_source_paths():
+    from hydromon.bus import _without_source_paths
+
+    raw = ("Can not create a new TCP listener bound to tcp/127.0.0.1:44437: [127.0.0.1:44437: Address already in "
+           "use (os error 98) at /root/.cargo/git/checkouts/zenoh-9c599d5ef3e0480e/cc83980/io/zenoh-link-commons/"
+           "src/tcp.rs:61.] at /root/.cargo/git/checkouts/zenoh-9c599d5ef3e0480e/cc83980/io/zenoh-links/"
+           "zenoh-link-tcp/src/unicast.rs:338.")
+    assert _without_source_paths(raw) == ("Can not create a new TCP listener bound to tcp/127.0.0.1:44437: "
+                                          "[127.0.0.1:44437: Address already in use (os error 98)]")
+    assert _without_source_paths("Unable to connect to any of [Single(tcp/127.0.0.1:1)]!") == \
+        "Unable to connect to any of [Single(tcp/127.0.0.1:1)]!"
