@@ -11,6 +11,7 @@ import argparse
 import json
 import re
 import sys
+import threading
 import socket
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -175,14 +176,47 @@ def isolation_hint(mode: str, connect, listen, multicast: bool) -> str | None:
             "or --multicast on all)")
 
 
+NOT_CONNECTED_AFTER_S = 5.0
+"""A node given --connect endpoints that has reached no other node after this long says so."""
+
+
+def warn_if_not_connected(session: zenoh.Session, name: str, connect: list[str],
+                          after_s: float = NOT_CONNECTED_AFTER_S) -> threading.Timer | None:
+    """Once, ``after_s`` [s] from now: if the session has no router and no peer, say on stderr
+    that ``--connect`` reached nobody. A peer whose endpoint is down (a typo, the other node not
+    started) opens anyway and zenoh keeps retrying in silence: a recorder ran its whole
+    ``--duration`` and wrote an empty file with exit status 0, saying nothing."""
+    if not connect:
+        return None
+
+    def check() -> None:
+        try:
+            if session.is_closed() or list(session.info.routers_zid()) or list(session.info.peers_zid()):
+                return
+        except zenoh.ZError:  # closed meanwhile
+            return
+        print(f"hydromon {name}: warning: no zenoh node reached after {after_s:g} s through --connect "
+              f"{', '.join(connect)} (is it running, and is that its --listen endpoint? zenoh keeps trying)",
+              file=sys.stderr, flush=True)
+
+    timer = threading.Timer(after_s, check)
+    timer.daemon = True
+    timer.start()
+    return timer
+
+
 def session_from_args(args: argparse.Namespace) -> zenoh.Session:
     """Open the session described by the flags of :func:`add_bus_arguments` (a node that will
-    meet nobody says so on stderr: :func:`isolation_hint`)."""
+    meet nobody says so on stderr: :func:`isolation_hint`, and :func:`warn_if_not_connected`
+    when its ``--connect`` endpoints reach no node)."""
     _check_ns(args.namespace)
+    name = getattr(args, "command", None) or "node"
     hint = isolation_hint(args.mode, args.connect, args.listen, args.multicast)
     if hint is not None:
-        print(f"hydromon {getattr(args, 'command', None) or 'node'}: warning: {hint}", file=sys.stderr, flush=True)
-    return open_session(args.mode, args.connect, args.listen, args.multicast)
+        print(f"hydromon {name}: warning: {hint}", file=sys.stderr, flush=True)
+    session = open_session(args.mode, args.connect, args.listen, args.multicast)
+    warn_if_not_connected(session, name, _endpoints("connect", args.connect))
+    return session
 
 
 def dumps(obj) -> bytes:

@@ -102,3 +102,24 @@ def test_zenoh_errors_lose_their_rust_source_paths():
                                           "[127.0.0.1:44437: Address already in use (os error 98)]")
     assert _without_source_paths("Unable to connect to any of [Single(tcp/127.0.0.1:1)]!") == \
         "Unable to connect to any of [Single(tcp/127.0.0.1:1)]!"
+
+
+@pytest.mark.network
+@pytest.mark.timeout(60)
+def test_a_node_whose_connect_reaches_nobody_says_so(capsys):
+    # a review: `hydromon record --connect tcp/127.0.0.1:1 --duration 1` (a peer: zenoh opens and
+    # keeps retrying) wrote an empty recording with exit status 0 and said nothing
+    from hydromon.bus import warn_if_not_connected
+
+    with socket.socket() as held:  # bound, not listening: a connect is refused
+        held.bind(("127.0.0.1", 0))
+        dead = f"tcp/127.0.0.1:{held.getsockname()[1]}"
+        with open_session("peer", connect=[dead]) as alone:
+            warn_if_not_connected(alone, "record", [dead], after_s=0.3).join(10)
+        err = capsys.readouterr().err
+        assert "hydromon record: warning: no zenoh node reached after 0.3 s through --connect " + dead in err
+        with listening_session() as (_, ep), open_session("peer", connect=[ep]) as linked:
+            timer = warn_if_not_connected(linked, "record", [ep], after_s=1.0)
+            timer.join(10)
+        assert capsys.readouterr().err == ""
+        assert warn_if_not_connected(linked, "record", []) is None  # nothing to reach: no check
