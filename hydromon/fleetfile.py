@@ -37,6 +37,7 @@ from plant_sim.live import PlantFleet
 from plant_sim.noise import noise_model
 from plant_sim.params import EFFECT_NAMES, Effects, PlantParams, RigConfig
 from plant_sim.profiles import parse_profile
+from plant_sim.validation import brief_error
 
 __all__ = [
     "EFFECT_FIELDS", "RigSpec", "FleetSpec", "parse_effect", "load_fleet", "default_fleet",
@@ -54,17 +55,6 @@ EFFECT_FIELDS = {
 }
 """Effect name -> (``plant_sim.params.Effects`` field it sets, unit of the magnitude)."""
 assert set(EFFECT_FIELDS) == set(EFFECT_NAMES)
-
-
-def brief_error(exc: ValidationError) -> str:
-    """A pydantic error in one line per problem: ``where: what (got value)``."""
-    parts = []
-    for e in exc.errors():
-        where = ".".join(str(x) for x in e["loc"])
-        msg = e["msg"].removeprefix("Value error, ")
-        got = "" if e["type"] == "value_error" else f" (got {e.get('input')!r})"
-        parts.append(f"{where + ': ' if where else ''}{msg}{got}")
-    return "; ".join(parts)
 
 
 def parse_effect(text: str) -> tuple[str, float]:
@@ -274,8 +264,10 @@ def load_fleet(path: str | Path) -> FleetSpec:
     text = path.read_text()
     try:
         data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not a TOML fleet file ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not a JSON fleet file ({exc}); a fleet file is .toml or .json") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: a fleet file is a table with a 'rigs' list")
     try:

@@ -17,6 +17,8 @@ from typing import Literal, NamedTuple
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
 
+from plant_sim.validation import brief_error
+
 from .names import GRADES, PARAM_NAMES
 
 __all__ = ["ParamRange", "Ranges", "RangeArrays", "grade_name", "DEFAULT_RANGES_PATH", "PAPER_TABLE3_PATH"]
@@ -87,16 +89,6 @@ class RangeArrays(NamedTuple):
     margins: np.ndarray
 
 
-def _brief(exc: ValidationError) -> str:
-    """A pydantic error on one line: ``where: what`` per problem (pydantic's own text spans
-    several lines per problem, with the whole input and a web address)."""
-    parts = []
-    for e in exc.errors():
-        where = ".".join(str(x) for x in e["loc"])
-        parts.append(f"{where + ': ' if where else ''}{e['msg'].removeprefix('Value error, ')}")
-    return "; ".join(parts)
-
-
 class Ranges(BaseModel):
     """Health ranges: one :class:`ParamRange` per graded parameter, keyed by bus name."""
 
@@ -128,7 +120,7 @@ class Ranges(BaseModel):
         try:
             return cls.model_validate_json(text)
         except ValidationError as e:
-            raise ValueError(f"bad ranges file {str(path)!r}: {_brief(e)}") from None
+            raise ValueError(f"bad ranges file {str(path)!r}: {brief_error(e)}") from None
 
     @classmethod
     def default(cls) -> Ranges:
