@@ -78,6 +78,9 @@ def main(argv: list[str] | None = None) -> int:
     except ConnectionError as exc:  # the bus (hydromon.bus.open_session): not a usage error, not a crash
         print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:  # the system refused (a full disk, a permission): one line, not a traceback
+        print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     finally:
         if notice is not None:
             notice.cancel()

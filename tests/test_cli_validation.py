@@ -351,7 +351,8 @@ def test_a_directory_given_as_the_recording_is_one_error_line_not_a_traceback(tm
     (None, "missing.json': No such file or directory"),
     ("t,ug,x1\n0,0,0\n", "Invalid JSON: expected ident at line 1 column 2"),
     ('{"params": {"K_sv": {"direction": "up", "edges": [1, 2, 3, 4]}}, "x": 1}',
-     "params.K_sv.direction: Input should be 'rising' or 'falling'; x: Extra inputs are not permitted"),
+     "params.K_sv.direction: Input should be 'rising' or 'falling' (got 'up'); x: Extra inputs are not "
+     "permitted (got 1)"),
 ])
 def test_a_bad_ranges_file_is_one_error_line(tmp_path, capsys, text, needle):
     # a review: pydantic's own text (several lines per problem, the whole file as its input and a
@@ -361,3 +362,49 @@ def test_a_bad_ranges_file_is_one_error_line(tmp_path, capsys, text, needle):
         path.write_text(text)
     assert main(["monitor", "--ranges", str(path), "--duration", "0.1"]) == 2
     one_error_line(capsys, "monitor", f"ranges file '{path}'", needle)
+
+
+def test_pydantic_errors_are_one_short_line():
+    from pydantic import BaseModel, ValidationError
+
+    from plant_sim.validation import brief_error
+
+    class M(BaseModel):
+        a: int
+        b: str
+
+    with pytest.raises(ValidationError) as err:
+        M(a="x" * 500, b=3)
+    line = brief_error(err.value)
+    assert "\n" not in line and len(line) < 200  # pydantic's own text echoed the 500 characters
+    assert line.startswith("a: Input should be a valid integer") and "...)" in line
+    assert "; b: Input should be a valid string (got 3)" in line
+
+
+def test_a_fleet_file_of_another_format_says_what_a_fleet_file_is(tmp_path, capsys):
+    # a review: `sim --fleet a.csv` said only "Expecting value: line 1 column 1 (char 0)"
+    path = tmp_path / "a.csv"
+    path.write_text("id,severity\nr1,0.5\n")
+    assert main(["sim", "--fleet", str(path), "--to-csv", str(tmp_path / "x.csv"), "--duration", "1"]) == 2
+    one_error_line(capsys, "sim", f"{path}: not a JSON fleet file", "a fleet file is .toml or .json")
+
+
+def test_record_names_out_when_its_directory_cannot_be_made(tmp_path, capsys):
+    # a review: `record --out /proc/nope/x.mcap` passed the checks (root may write /proc) and then
+    # said only "[Errno 2] No such file or directory: '/proc/nope'"
+    assert main(["record", "--out", "/proc/nope/x.mcap", "--duration", "1", "--listen", "tcp/127.0.0.1:0"]) == 2
+    one_error_line(capsys, "record", "--out '/proc/nope/x.mcap'")
+
+
+def test_a_system_error_is_one_line_and_status_1(monkeypatch, capsys):
+    # a full disk or a refused permission inside a command was a traceback
+    import errno
+
+    from hydromon.commands import audit
+
+    def full(args):
+        raise OSError(errno.ENOSPC, "No space left on device", "report.md")
+
+    monkeypatch.setattr(audit, "run", full)
+    assert main(["audit", "x.csv"]) == 1
+    one_error_line(capsys, "audit", "No space left on device", "report.md")

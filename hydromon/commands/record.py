@@ -39,11 +39,14 @@ def run(args) -> int:
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with session_from_args(args) as session:
-            result = record(
-                session, args.out, namespace=args.namespace,
-                rotate_bytes=None if args.rotate_mb is None else max(1, round(args.rotate_mb * 1e6)),
-                rotate_seconds=args.rotate_s, duration_s=args.duration, stop_event=stop,
-                on_file=lambda p: print(f"hydromon record: writing {p}", file=sys.stderr, flush=True))
+            try:
+                result = record(
+                    session, args.out, namespace=args.namespace,
+                    rotate_bytes=None if args.rotate_mb is None else max(1, round(args.rotate_mb * 1e6)),
+                    rotate_seconds=args.rotate_s, duration_s=args.duration, stop_event=stop,
+                    on_file=lambda p: print(f"hydromon record: writing {p}", file=sys.stderr, flush=True))
+            except OSError as exc:  # creating or writing the files (the checks above cannot see /proc, a full disk)
+                raise OSError(exc.errno, f"--out {args.out!r}: {exc.strerror or exc}", exc.filename) from None
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
