@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
+
+from hydromon.commands._stop import stop_on_signals
 
 NAME = "demo"
 HELP = ("everything in one process on an embedded zenoh session: simulated rigs, monitor, recorder; "
@@ -37,14 +38,13 @@ def run(args) -> int:
     _checks.writable_dir("--out", args.out)
     spec = load_fleet(args.fleet) if args.fleet else default_fleet()
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.commands._stop
     try:
         result = run_demo(duration=args.duration or None, out_dir=args.out, rate=args.rate,
                           namespace=args.namespace, fleet=spec, stop_event=stop,
                           live=False if args.plain else None)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        restore_signals()
     print(summary(result, spec.ids))
     c = result.counters
     rejected = sum(c["rejected"].values())

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
 
 from hydromon.bus import add_bus_arguments, session_from_args
 from hydromon.commands._ranges import add_ranges_argument, ranges_from_args
+from hydromon.commands._stop import stop_on_signals
 
 NAME = "monitor"
 HELP = "grade every rig on <namespace>/rig/*/sample and publish <namespace>/rig/<id>/health"
@@ -66,7 +66,7 @@ def run(args) -> int:
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
                        on_warning=log_rig_warning, threads=args.threads, ranges=ranges, max_rigs=args.max_rigs)
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.commands._stop
     try:
         with session_from_args(args) as session:
             print(f"hydromon monitor: node {args.node!r} on {args.namespace}/rig/{args.rigs}/sample",
@@ -75,8 +75,7 @@ def run(args) -> int:
                         duration=args.duration, core=core, rigs=args.rigs, stale_after_s=args.stale_after,
                         forget_after_s=args.forget_after)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        restore_signals()
     c = core.counters
     rejected = ", ".join(f"{k} {v}" for k, v in c.rejected.items() if v) or "none"
     print(f"hydromon monitor: {len(core.rigs)} rig(s), {c.accepted} samples, {c.health} health messages; "

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
 from pathlib import Path
 
 from hydromon.bus import add_bus_arguments, session_from_args
+from hydromon.commands._stop import stop_on_signals
 
 NAME = "record"
 HELP = "record everything under <namespace>/** into MCAP files (json + jsonschema channels)"
@@ -36,7 +36,7 @@ def run(args) -> int:
     # --out as the recorder reads it: a directory for its files, or a file whose directory is created
     writable_dir("--out", args.out if names_a_directory(args.out) else Path(args.out).parent)
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.commands._stop
     try:
         with session_from_args(args) as session:
             try:
@@ -48,8 +48,7 @@ def run(args) -> int:
             except OSError as exc:  # creating or writing the files (the checks above cannot see /proc, a full disk)
                 raise OSError(exc.errno, f"--out {args.out!r}: {exc.strerror or exc}", exc.filename) from None
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        restore_signals()
     print(f"hydromon record: {result.messages} messages in {len(result.files)} file(s)"
           + (f"; {result.not_json} non-JSON payloads not recorded" if result.not_json else ""),
           file=sys.stderr)

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
 
 from hydromon.bus import add_bus_arguments, session_from_args
 from hydromon.commands._ranges import RANGES_HELP, add_ranges_argument, ranges_from_args
+from hydromon.commands._stop import stop_on_signals
 
 NAME = "replay"
 HELP = "publish an MCAP recording on the bus (paced), or grade it in-process with --direct"
@@ -131,7 +131,7 @@ def run(args) -> int:
     rate = DEFAULT_RATE if args.rate is None else args.rate
     wait_s = DEFAULT_WAIT_S if args.wait is None else args.wait
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.commands._stop
     try:
         with session_from_args(args) as session:
             if args.quiet:
@@ -148,8 +148,7 @@ def run(args) -> int:
                                        duration=args.duration, loop=args.loop, stop_event=stop, wait_s=wait_s,
                                        progress=lambda done, total: bar.update(task, completed=done, total=total))
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        restore_signals()
     stopped = "" if stats.stopped_at is None else \
         f", stopped (Ctrl-C/SIGTERM) {stats.stopped_at:.1f} s into a pass of {total:.1f} s"
     print(f"hydromon replay: {stats.published} messages on {len(stats.keys)} key(s), {stats.passes} pass(es)"

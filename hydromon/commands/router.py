@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
+
+from hydromon.commands._stop import stop_on_signals
 
 NAME = "router"
 HELP = "run a zenoh router (other nodes --connect to it) until Ctrl-C/SIGTERM or --duration"
@@ -41,13 +42,12 @@ def run(args) -> int:
 
     listen = args.listen or [DEFAULT_ROUTER_ENDPOINT]
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.commands._stop
     try:
         run_router(listen, args.connect, args.multicast, args.duration, stop,
                    on_ready=lambda s: print(f"hydromon router: {s.zid()} listening on {', '.join(listen)}",
                                             file=sys.stderr, flush=True))
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        restore_signals()
     print("hydromon router: stopped", file=sys.stderr)
     return 0

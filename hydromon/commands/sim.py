@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-import signal
 import sys
 import threading
 import time
 from contextlib import ExitStack
 
 from hydromon.bus import add_bus_arguments, session_from_args
+from hydromon.commands._stop import stop_on_signals
 
 NAME = "sim"
 HELP = "simulate rigs and publish their samples on the bus (or write a run to --to-csv/--to-mcap)"
@@ -163,7 +163,7 @@ def run(args) -> int:
             print(f"hydromon sim: {n} messages of {len(one.rigs)} rig(s) -> {args.to_mcap}", file=sys.stderr)
         return 0
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.commands._stop
     try:
         with session_from_args(args) as session:
             print(f"hydromon sim: {len(spec.rigs)} rig(s) on {args.namespace}/rig/*/sample at "
@@ -172,8 +172,7 @@ def run(args) -> int:
                                     duration=args.duration, stop_event=stop,
                                     block=simnode.DEFAULT_BLOCK if args.block is None else args.block)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        restore_signals()
     print(f"hydromon sim: {stats.samples} samples x {len(spec.rigs)} rig(s), {stats.published} messages in "
           f"{stats.wall:.2f} s; max lateness {stats.max_late * 1e3:.1f} ms", file=sys.stderr)
     return 0

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import signal
 import sys
 import threading
 import time
 
 from hydromon.bus import add_bus_arguments, session_from_args
+from hydromon.commands._stop import stop_on_signals
 
 NAME = "watch"
 HELP = ("show the latest health of every rig on the bus, the rigs that need attention first and the "
@@ -62,7 +62,7 @@ def run(args) -> int:
     board = Board(ns=args.namespace)
     clock = time.monotonic
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.commands._stop
     try:
         with session_from_args(args) as session:
             # subscribe first: a verdict published while the query runs is not missed
@@ -81,8 +81,7 @@ def run(args) -> int:
             _follow(sub, board, args, stop, clock, top, render_board_plain, render_board_rich, key)
             sub.undeclare()
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        restore_signals()
     print(render_board_plain(board, clock(), top))
     return 0
 
