@@ -29,12 +29,11 @@ import zenoh
 from hydromon.bus import listening_session
 from hydromon.contract import DEFAULT_NAMESPACE, _check_ns, parse_rig_key
 from hydromon.fleetfile import FleetSpec, RigSpec, default_fleet
+from hydromon.health_table import GRADE_STYLE, TABLE_PARAMS, fmt_value
 from hydromon.inprocess import Worker, await_recorder_and_monitor
 
 __all__ = ["DemoResult", "run_demo", "true_grade", "TABLE_PARAMS", "render_plain", "render_rich"]
 
-TABLE_PARAMS = ("K_sv", "f_c", "B_fv", "C_ip")
-"""Parameters shown in the live table (SI: m/V, N, N s/m, m^3/(s Pa)): the graded ones."""
 
 
 def true_grade(rig: RigSpec) -> str | None:
@@ -69,12 +68,6 @@ class DemoResult:
         return sum(1 for r, g in self.truth.items() if g is not None and self.health.get(r, {}).get("grade") == g)
 
 
-def _fmt(v) -> str:
-    if v is None:
-        return "-"
-    return f"{v:.0f}" if 1e3 <= abs(v) < 1e6 else f"{v:.3g}"
-
-
 def _rows(ids, health: dict, truth: dict):
     for rig in ids:
         h = health.get(rig)
@@ -82,7 +75,7 @@ def _rows(ids, health: dict, truth: dict):
             yield [rig, "-", "-", "waiting", *["-"] * len(TABLE_PARAMS), "-", truth.get(rig) or "?"]
             continue
         yield [rig, h["grade"], f"{h['confidence']:.2f}", h["status"],
-               *[_fmt(h["params"].get(p)) for p in TABLE_PARAMS], f"{h['t']:.1f}", truth.get(rig) or "?"]
+               *[fmt_value(h["params"].get(p)) for p in TABLE_PARAMS], f"{h['t']:.1f}", truth.get(rig) or "?"]
 
 
 _HEAD = ["rig", "grade", "conf", "status", *TABLE_PARAMS, "t [s]", "true"]
@@ -93,10 +86,6 @@ def render_plain(ids, health: dict, truth: dict) -> str:
     rows = [_HEAD, *_rows(ids, health, truth)]
     widths = [max(len(r[i]) for r in rows) for i in range(len(_HEAD))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
-
-
-_STYLE = {"health": "green", "sub-health": "green3", "average": "yellow", "deterioration": "dark_orange",
-          "fault": "red", "unknown": "dim"}
 
 
 def render_rich(ids, health: dict, truth: dict, title: str = ""):
@@ -111,7 +100,7 @@ def render_rich(ids, health: dict, truth: dict, title: str = ""):
         table.add_column(name, justify="right" if name in (*TABLE_PARAMS, "conf") else "left",
                          no_wrap=name in ("rig", "grade", "status"))
     for row in _rows(ids, health, truth):
-        style = _STYLE.get(row[1], "")
+        style = GRADE_STYLE.get(row[1], "")
         row[1] = f"[{style}]{row[1]}[/]" if style else row[1]
         table.add_row(*row[:-2])
     return table

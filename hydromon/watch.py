@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pydantic import ValidationError
 
 from hydromon.contract import DEFAULT_NAMESPACE, GRADES, Health, split_rig_key
-from hydromon.demo import TABLE_PARAMS, _fmt
+from hydromon.health_table import GRADE_STYLE, TABLE_PARAMS, fmt_value
 
 __all__ = ["BOARD_HEAD", "Board", "board_columns", "board_counts", "board_rows", "render_board_plain", "render_board_rich"]
 
@@ -77,7 +77,7 @@ def board_rows(board: Board, now: float, top: int | None = None) -> tuple[list[l
     rows = []
     for rig, h in shown:
         rows.append([rig, h["grade"], f"{h['confidence']:.2f}", h["status"], _why(h),
-                     *[_fmt(h["params"].get(p)) for p in TABLE_PARAMS], f"{h['t']:.1f}",
+                     *[fmt_value(h["params"].get(p)) for p in TABLE_PARAMS], f"{h['t']:.1f}",
                      f"{max(0.0, now - board.arrived[rig]):.1f}"])
     return rows, len(items) - len(shown)
 
@@ -132,8 +132,6 @@ def render_board_rich(board: Board, now: float, top: int | None = None, title: s
     from rich.markup import escape
     from rich.table import Table
 
-    from hydromon.demo import _STYLE
-
     rows, more = board_rows(board, now, top)
     keep = board_columns(rows, width)
     caption = f"... and {more} more rig(s) (--top N shows more)" if more else None
@@ -145,7 +143,7 @@ def render_board_rich(board: Board, now: float, top: int | None = None, title: s
         table.add_column(escape(name), justify="right" if name in (*TABLE_PARAMS, "conf", "t [s]", "age [s]")
                          else "left", no_wrap=True)  # escaped: "[s]" is rich's strike-through markup
     for row in rows:
-        style = _STYLE.get(row[1], "")
+        style = GRADE_STYLE.get(row[1], "")
         row[1] = f"[{style}]{row[1]}[/]" if style else row[1]
         if row[3] == "bad-input":
             row[3] = "[red]bad-input[/]"
