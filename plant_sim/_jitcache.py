@@ -49,14 +49,25 @@ def prune(base: Path, keep: Path, now: float, stale_days: float = STALE_DAYS) ->
     return removed
 
 
-def is_cold() -> bool:
-    """True when numba's cache directory holds no compiled kernel yet: the first run of this
-    version on this machine, which compiles every kernel it calls (about a minute)."""
+def numba_subdir(source_dir: Path) -> str:
+    """The directory under NUMBA_CACHE_DIR where numba keeps the kernels of the modules in
+    ``source_dir``: its name and the SHA-1 of its absolute path
+    (``numba.core.caching._CacheLocator.get_suitable_cache_subpath``). Two checkouts of the same
+    version share the cache directory (it is keyed on the sources' content) but not these."""
+    path = os.path.abspath(source_dir)
+    return f"{os.path.basename(path)}_{hashlib.sha1(path.encode()).hexdigest()}"
+
+
+def is_cold(root: Path = _ROOT) -> bool:
+    """True when numba's cache holds no compiled kernel yet for a package of this checkout
+    (``root``): the first run of this version from here, which compiles every kernel it calls
+    (about a minute). Kernels another checkout of the same sources compiled do not count:
+    numba keys them on their files' paths, so this one compiles its own."""
     cache = os.environ.get("NUMBA_CACHE_DIR")
     if not cache:
         return False  # numba caches beside the sources: we cannot tell cheaply
     try:
-        return not any(Path(cache).rglob("*.nbi"))
+        return not all(any((Path(cache) / numba_subdir(root / pkg)).glob("*.nbi")) for pkg in _PACKAGES)
     except OSError:
         return False
 

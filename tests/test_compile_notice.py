@@ -10,14 +10,42 @@ from hydromon import cli
 from plant_sim import _jitcache
 
 
+def _compiled(cache, root, pkg):
+    sub = cache / _jitcache.numba_subdir(root / pkg)
+    sub.mkdir(parents=True, exist_ok=True)
+    (sub / "kernel-1.py311.nbi").write_bytes(b"")
+
+
 def test_is_cold_reads_the_cache_directory(tmp_path, monkeypatch):
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     assert _jitcache.is_cold()
-    (tmp_path / "sub").mkdir()
-    (tmp_path / "sub" / "kernel-1.py311.nbi").write_bytes(b"")
+    for pkg in _jitcache._PACKAGES:
+        _compiled(tmp_path, _jitcache._ROOT, pkg)
     assert not _jitcache.is_cold()
     monkeypatch.delenv("NUMBA_CACHE_DIR")
     assert not _jitcache.is_cold()  # numba caches beside the sources: unknown, so no claim
+
+
+def test_is_cold_for_a_second_checkout_of_the_same_sources(tmp_path, monkeypatch):
+    # the cache directory is keyed on the sources' content, so a clone shares it with the
+    # checkout it came from; numba keys each kernel on its file's path, so the clone compiles
+    # all of them again (a monitor sat a minute silent, at 50 % CPU, with no notice)
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    first, clone = tmp_path / "main", tmp_path / "clone"
+    for pkg in _jitcache._PACKAGES:
+        _compiled(cache, first, pkg)
+    assert not _jitcache.is_cold(first)
+    assert _jitcache.is_cold(clone)
+    _compiled(cache, clone, "plant_sim")
+    assert _jitcache.is_cold(clone)  # the monitor's kernels still to compile
+    _compiled(cache, clone, "monitor")
+    assert not _jitcache.is_cold(clone)
+    # the name numba itself gives the directory
+    from numba.core.caching import _CacheLocator
+
+    assert _jitcache.numba_subdir(clone / "monitor") == _CacheLocator.get_suitable_cache_subpath(
+        str(clone / "monitor" / "pipeline.py"))
 
 
 def _args(command, kernels, **kw):
