@@ -54,6 +54,10 @@ class Board:
         self.arrived[parts[0]] = now
         return True
 
+    def grade_counts(self) -> Counter:
+        """Rigs per grade name (``unknown`` included)."""
+        return Counter(h["grade"] for h in self.latest.values())
+
 
 def _why(h: dict) -> str:
     """The graded parameters whose grade is the rig's (none for health or unknown)."""
@@ -84,7 +88,7 @@ def board_rows(board: Board, now: float, top: int | None = None) -> tuple[list[l
 
 def board_counts(board: Board) -> str:
     """One line: rigs per grade, worst first, and the invalid payloads if any."""
-    n = Counter(h["grade"] for h in board.latest.values())
+    n = board.grade_counts()
     bad = sum(1 for h in board.latest.values() if h["status"] == "bad-input")
     parts = [f"{n[g]} {g}" for g in (*reversed(GRADES), "unknown") if n[g]]
     line = f"{len(board.latest)} rig(s)" + (f": {', '.join(parts)}" if parts else "")

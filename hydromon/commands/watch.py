@@ -88,9 +88,7 @@ def run(args) -> int:
 
 def _print_once(board, args, orjson, render_plain, now, top) -> int:
     if args.json:
-        from collections import Counter
-
-        counts = Counter(h["grade"] for h in board.latest.values())
+        counts = board.grade_counts()
         print(orjson.dumps({"rigs": dict(sorted(board.latest.items())), "counts": dict(sorted(counts.items())),
                             "invalid": board.invalid}).decode())
     elif board.latest:  # an empty table says nothing the error below does not
