@@ -20,12 +20,14 @@ import math
 
 import numpy as np
 
+from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, PSI_NOM, REF_EVERY
 from monitor.ident_options import IdentOptions, Kernels
 from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F
 from monitor.layout import (
-    N_CH, N_LAGS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
-    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_SLOW, O_SVF_C, O_SVF_F, O_TH_C, O_TH_F, O_TH_V, O_XH, RING,
-    SG_HALF, STATE_SIZE, SVF_STATE,
+    N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
+    O_NE_YY, O_OBS_IC, O_OBS_KL, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
+    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
+    O_TH_V, O_XH, OBS_ORDER, OBS_STATE, RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
 from plant_sim.params import RigConfig
 
@@ -66,6 +68,7 @@ class NaiveIdentifier:
         # filters (monitor.svf, cubic hold): Phi (3,3) and the input weights G (3,4)
         self.f_mats = (k.m_f[:, :3].copy(), k.m_f[:, 3:].copy())
         self.c_mats = (k.m_c[:, :3].copy(), k.m_c[:, 3:].copy())
+        self.o_mats = (k.m_o[:, :OBS_ORDER].copy(), k.m_o[:, OBS_ORDER:].copy())
         self.warm = math.ceil(o.warmup / c.h)
         self.guard = math.ceil(o.reversal_guard / c.h)
         self.n = 0
@@ -90,6 +93,15 @@ class NaiveIdentifier:
         self.gate_n = 0.0
         self.outliers = np.zeros(4)
         self.clamped = 0.0
+        # the force balance with observed pressures (monitor.force_observer): filters, normal equations
+        self.svf_o = np.zeros((N_OBS, OBS_STATE))
+        self.ne_a = np.zeros((N_OBS_PARAMS, N_OBS_PARAMS))
+        self.ne_b = np.zeros(N_OBS_PARAMS)
+        self.ne_yy = 0.0
+        self.th_o = np.zeros(N_OBS_PARAMS)
+        self.rows_o = 0.0
+        self.obs_ic = 0.0
+        self.obs_kl = 0.0
 
     # -- pieces -----------------------------------------------------------------------------
 
@@ -292,6 +304,7 @@ class NaiveIdentifier:
         yf = np.empty((3, 3))
         for i in range(3):
             self.svf_f[i], yf[i] = self._svf(self.f_mats, self.svf_f[i], u_f[i])
+        yo = self._observer_filters(n, c1, c3, c4, self._at(SG_HALF, 4)) if o.pressure_observer else None
         if n - 2 * SG_HALF < self.warm or self.slow < self.guard:
             return
         # skipped while a reversal is inside the filter's memory
@@ -302,6 +315,70 @@ class NaiveIdentifier:
             self.rows[0] += 1.0
             self.bc[0] = o.lam * self.bc[0] + 1.0
             self._residual(0, y - phi @ self.th_f, o.lam)
+        if yo is not None:
+            self._observer_row(phi, yo)
+
+    def _observer_filters(self, n: int, x1: float, x3: float, x4: float, x5: float) -> np.ndarray:
+        """The observer filter bank (monitor.force_observer) at the force rows' instant: outputs (5, 4)."""
+        c, o = self.config, self.options
+        r1 = max(c.A1 * x1 / c.V10, V_MIN - 1.0)
+        r2 = max(-c.A2 * x1 / c.V20, V_MIN - 1.0)
+        v1, v2 = c.V10 * (1.0 + r1), c.V20 * (1.0 + r2)
+        z1, z2 = _orifice_z(x5, x3, x4, c.p_s)
+        u = np.array([c.A1 * x3 - c.A2 * x4 - c.F_L, c.A1 * math.log1p(r1) - c.A2 * math.log1p(r2),
+                      x5 * (c.A1 * z1 / v1 + c.A2 * z2 / v2), -(x3 - x4) * (c.A1 / v1 + c.A2 / v2),
+                      -(c.A1 * x3 / v1 - c.A2 * x4 / v2)])
+        if n == 2 * SG_HALF:
+            # Fm and Lc at rest (H's DC gain is 1/w_c), the flows' integral at zero; an earlier
+            # start transient's amplitude is eliminated from the normal equations
+            wc = o.observer_crossover
+            self.svf_o = np.array([np.concatenate(([u[i] / wc if i < 2 else 0.0], np.zeros(3), [u[i]] * 3))
+                                   for i in range(N_OBS)])
+            k = N_OBS_PARAMS - 1
+            d = self.ne_a[k, k]
+            if d > 0.0:
+                self.ne_yy -= self.ne_b[k] ** 2 / d
+                self.ne_b = self.ne_b - self.ne_a[:, k] * self.ne_b[k] / d
+                self.ne_a = self.ne_a - np.outer(self.ne_a[:, k], self.ne_a[:, k]) / d
+            self.ne_a[k, :] = 0.0
+            self.ne_a[:, k] = 0.0
+            self.ne_b[k] = 0.0
+            self.obs_ic = 1.0
+            self.obs_kl = c.A1 ** 2 / v1 + c.A2 ** 2 / v2
+        phi_m, g = self.o_mats
+        hold = n - 2 * SG_HALF < 2  # the two intervals before the first sample (see obs_bank_step)
+        y = np.empty((N_OBS, OBS_ORDER))
+        for i in range(N_OBS):
+            x = self.svf_o[i]
+            y[i] = x[:OBS_ORDER] if hold else phi_m @ x[:OBS_ORDER] + g @ np.array([x[4], x[5], x[6], u[i]])
+            self.svf_o[i] = np.concatenate((y[i], x[5:7], [u[i]]))
+        if not hold:
+            self.obs_ic *= math.exp(-o.observer_crossover * self.h)
+        return y
+
+    def _observer_row(self, phi: np.ndarray, yo: np.ndarray) -> None:
+        """The force balance with observed pressures: one row into the normal equations."""
+        o = self.options
+        ph = np.concatenate((phi, [-yo[2, 0] * PSI_NOM[0], -yo[3, 0] * PSI_NOM[1], -yo[4, 0] * PSI_NOM[2],
+                                   yo[1, 1] * PSI_NOM[3], self.obs_ic * IC_NOM] / np.float64(Y_NOM_F)))
+        y = o.observer_crossover * yo[0, 0] / Y_NOM_F
+        if not (np.all(np.isfinite(ph)) and math.isfinite(y)):
+            return
+        self.ne_a = o.lam * self.ne_a + np.outer(ph, ph)
+        self.ne_b = o.lam * self.ne_b + ph * y
+        self.ne_yy = o.lam * self.ne_yy + y * y
+        self.rows_o += 1.0
+        if self.rows_o % REF_EVERY == 0:
+            # reference: the free parameters with psi held at the chamber RLS's current estimate
+            cp = self.th_c * THETA_NOM_C
+            if cp[0] > 0.0:
+                psi = np.array([cp[1] / cp[0], cp[2] / cp[0], cp[3] / cp[0], 1.0 / cp[0]]) / PSI_NOM
+                f = list(FREE)
+                rhs = self.ne_b[f] - self.ne_a[np.ix_(f, [4, 5, 6, 7])] @ psi
+                self.th_o[f] = np.linalg.solve(self.ne_a[np.ix_(f, f)], rhs)
+                self.th_o[4:8] = psi
+        if self.rows_o > REF_EVERY:
+            self._residual(4, y - ph @ self.th_o, o.lam)
 
     # -- read-out ---------------------------------------------------------------------------
 
@@ -333,6 +410,14 @@ class NaiveIdentifier:
         st[O_GATE_S:O_GATE_S + 4], st[O_GATE_N] = self.gate_s, self.gate_n
         st[O_OUTLIERS:O_OUTLIERS + 4] = self.outliers
         st[O_CLAMPED] = self.clamped
+        st[O_SVF_O:O_SVF_O + N_OBS * OBS_STATE] = self.svf_o.ravel()
+        st[O_NE_A:O_NE_A + N_OBS_PARAMS ** 2] = np.triu(self.ne_a).ravel()  # the kernel keeps the upper triangle
+        st[O_NE_B:O_NE_B + N_OBS_PARAMS] = self.ne_b
+        st[O_NE_YY] = self.ne_yy
+        st[O_TH_O:O_TH_O + N_OBS_PARAMS] = self.th_o
+        st[O_ROWS_O] = self.rows_o
+        st[O_OBS_IC] = self.obs_ic
+        st[O_OBS_KL] = self.obs_kl
         return st
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:

@@ -67,7 +67,7 @@ def _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sig
 # bumping one counter ~40 times a sample serialised a prange version (1.15x on 2 cores); each
 # Python thread's call unboxes the arrays with its own meminfo.
 @njit(cache=True, nogil=True, error_model="numpy")
-def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
+def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, m_o, g_f, g_c, min_rows, eval_every,
          index, sign, edges, margins, z, rig, samples,
          ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped, ev_bad,
          slot):
@@ -76,7 +76,7 @@ def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g
     for q in range(lo, hi):
         i = order[q]
         r = rig[i]
-        identify_step(states[r], consts[r], hyper, m_f, m_c, samples[i, 0], samples[i, 1], samples[i, 2],
+        identify_step(states[r], consts[r], hyper, m_f, m_c, m_o, samples[i, 0], samples[i, 1], samples[i, 2],
                       samples[i, 3], samples[i, 4], work)
         counts[r] += 1
         if (counts[r] + phase[r]) % eval_every == 0:
@@ -88,7 +88,7 @@ def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, g
 
 
 @njit(cache=True, error_model="numpy")
-def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_c, min_rows, eval_every,
+def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, m_o, g_f, g_c, min_rows, eval_every,
                   index, sign, edges, margins, z, rig, samples,
                   ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped,
                   ev_bad):
@@ -100,7 +100,7 @@ def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, g_f, g_
     caller to len(samples) // eval_every + number of rigs).
     """
     return _run(np.arange(rig.shape[0]), 0, rig.shape[0], states, consts, counts, phase, bands, hyper, m_f, m_c,
-                g_f, g_c, min_rows, eval_every, index, sign, edges, margins, z, rig, samples,
+                m_o, g_f, g_c, min_rows, eval_every, index, sign, edges, margins, z, rig, samples,
                 ev_rig, ev_sample, ev_count, ev_level, ev_conf, ev_params, ev_se, ev_grades, ev_conv, ev_clamped,
                 ev_bad, 0)
 

@@ -64,10 +64,13 @@ from .layout import (
     H_IV_START,
     H_LAM,
     H_NOISE_N,
+    H_OBS,
     H_PMAX,
     H_STEP_TOL,
     H_VSTICK,
     H_WARM,
+    H_WC,
+    H_WC_DECAY,
     N_CH,
     N_CH_SVF,
     N_LAGS,
@@ -76,6 +79,8 @@ from .layout import (
     O_N,
     O_NOISE,
     O_NOISE_N,
+    O_OBS_IC,
+    O_OBS_KL,
     O_P_C,
     O_P_F,
     O_P_V,
@@ -88,6 +93,7 @@ from .layout import (
     O_SLOW,
     O_SVF_C,
     O_SVF_F,
+    O_SVF_O,
     O_TH_C,
     O_TH_F,
     O_TH_V,
@@ -95,6 +101,7 @@ from .layout import (
     RING,
     SG_HALF,
 )
+from .force_observer import ne_new_transient, ne_update, obs_bank_init, obs_bank_step, obs_inputs, obs_row
 from .outlier_gate import gate_step
 from .rls import riv_update, rls_update
 from .svf import svf_bank_init, svf_bank_step
@@ -194,7 +201,7 @@ def _valve_row(st, rc, hyper, phi, z):
     return y, step
 
 
-WORK_SIZE = 80
+WORK_SIZE = 150
 V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
 
 # The per-sample pieces (gate_step, identify_step, _consume, _force_rows, _chamber_rows) are inlined
@@ -204,7 +211,7 @@ V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
 # for 3 % more.
 @njit(cache=True, error_model="numpy", inline="always")
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
-                  ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
+                  m_o: np.ndarray, ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
     """Take one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place.
 
     The outlier gate holds it for two samples; the sample two before it is consumed now.
@@ -212,12 +219,13 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     """
     s = work[74:79]
     if gate_step(st, hyper, ug, x1, x3, x4, x5, s):
-        _consume(st, rc, hyper, m_f, m_c, s[0], s[1], s[2], s[3], s[4], work)
+        _consume(st, rc, hyper, m_f, m_c, m_o, s[0], s[1], s[2], s[3], s[4], work)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
-    """Consume one released sample: noise estimate, valve, chamber and force rows."""
+def _consume(st, rc, hyper, m_f, m_c, m_o, ug, x1, x3, x4, x5, work):
+    """Consume one released sample: noise estimate, valve, chamber and force rows (plain and
+    with observed pressures)."""
     n = int(st[O_N])
     for i in range(O_RING + RING * N_CH - 1, O_RING + N_CH - 1, -1):
         st[i] = st[i - N_CH]
@@ -292,8 +300,29 @@ def _consume(st, rc, hyper, m_f, m_c, ug, x1, x3, x4, x5, work):
         svf_bank_init(st, O_SVF_F, u)
     yf = work[20:29].reshape((3, 3))
     svf_bank_step(m_f, st, O_SVF_F, u, yf)
+    obs = hyper[H_OBS] > 0.0
+    yo = work[80:100].reshape((5, 4))
+    if obs:
+        # the observer's signals at the same instant c
+        r1 = max(a1 * c1 / rc[C_V10], V_MIN - 1.0)
+        r2 = max(-a2 * c1 / rc[C_V20], V_MIN - 1.0)
+        uo = work[109:114]
+        obs_inputs(a1, a2, rc[C_V10], rc[C_V20], rc[C_PS], rc[C_FL], 1.0 / (1.0 + r1), 1.0 / (1.0 + r2),
+                   math.log1p(r1), math.log1p(r2), _ring(st, SG_HALF, 2), _ring(st, SG_HALF, 3),
+                   _ring(st, SG_HALF, 4), uo)
+        if n == 2 * SG_HALF:
+            obs_bank_init(st, O_SVF_O, uo, hyper[H_WC])
+            ne_new_transient(st)
+            st[O_OBS_IC] = 1.0
+            st[O_OBS_KL] = a1 * a1 / (rc[C_V10] * (1.0 + r1)) + a2 * a2 / (rc[C_V20] * (1.0 + r2))
+        hold = n - 2 * SG_HALF < 2
+        obs_bank_step(m_o, st, O_SVF_O, uo, yo, hold)
+        if not hold:
+            st[O_OBS_IC] *= hyper[H_WC_DECAY]
     if n - 2 * SG_HALF >= hyper[H_WARM]:
         _force_rows(st, hyper, yf, phi, lam, pmax, w)
+        if obs:
+            _observer_rows(st, hyper, phi, yo, work[100:109], lam, work[114:148])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -312,6 +341,20 @@ def _force_rows(st, hyper, yf, phi, lam, pmax, w):
         st[O_ROWS] += 1.0
         st[O_BC] = lam * st[O_BC] + 1.0
         _residual_stats(st, 0, yv - _dot(phi, th), lam)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _observer_rows(st, hyper, phi, yo, phi9, lam, w):
+    """The force balance with observed pressures (monitor.force_observer), on the rows the plain
+    force balance takes: phi holds that row's four scaled regressors."""
+    if st[O_SLOW] < hyper[H_GUARD]:
+        return
+    for i in range(4):
+        phi9[i] = phi[i]
+    yv = obs_row(yo, hyper[H_WC], st[O_OBS_IC], Y_NOM_F, phi9)
+    e = ne_update(st, phi9, yv, lam, O_TH_C, THETA_NOM_C, w)
+    if math.isfinite(e):
+        _residual_stats(st, 4, e, lam)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -350,10 +393,10 @@ def _chamber_rows(st, rc, yc, phi, lam, pmax, w):
 
 @njit(cache=True, error_model="numpy")
 def fleet_step(states: np.ndarray, consts: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
-               rig: np.ndarray, samples: np.ndarray) -> None:
+               m_o: np.ndarray, rig: np.ndarray, samples: np.ndarray) -> None:
     """Consume a batch of samples in arrival order: sample i (ug, x1, x3, x4, x5) belongs to rig[i]."""
     work = np.empty(WORK_SIZE)
     for i in range(rig.shape[0]):
         r = rig[i]
-        identify_step(states[r], consts[r], hyper, m_f, m_c,
+        identify_step(states[r], consts[r], hyper, m_f, m_c, m_o,
                       samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4], work)

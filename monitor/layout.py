@@ -11,10 +11,13 @@ SG_HALF = 3  # half-width of the centred velocity window [samples]
 RING = 2 * SG_HALF + 1
 N_CH = 5  # ug, x1, x3, x4, x5
 N_LAGS = 8  # residual autocorrelation lags used for honest standard errors
-N_STREAMS = 4  # residual streams: force, chamber 1, chamber 2, valve
+N_STREAMS = 5  # residual streams: force, chamber 1, chamber 2, valve, force with observed pressures
 SVF_STATE = 6  # per filtered signal: the filter's 3 states and the last 3 inputs (monitor.svf)
 N_FORCE_SVF = 3  # x1, Q1, sign(v)
 N_CH_SVF = 10  # x3, x4, L1, L2, w1 x5 z1, w2 x5 z2, w1 dp, w2 dp, w1 x3, w2 x4 (monitor.identify)
+N_OBS = 5  # Fm, Lc, G_theta, G_ip, G_ep (monitor.force_observer)
+OBS_ORDER = 4  # the observer filter's states: its output and three derivatives
+OBS_STATE = OBS_ORDER + 3  # per observer signal: its 4 states and the last 3 inputs
 
 _FIELDS = [
     ("N", 1),  # samples since the last signal reset
@@ -38,6 +41,12 @@ _FIELDS = [
     ("GATE_N", 1),
     ("OUTLIERS", 4),  # samples the gate replaced, per sensor x1, x3, x4, x5
     ("CLAMPED", 1),  # samples whose x1 would have emptied a chamber (volume clamped, see identify)
+    ("SVF_O", N_OBS * OBS_STATE),  # the force balance with observed pressures (monitor.force_observer)
+    ("NE_A", 81), ("NE_B", 9), ("NE_YY", 1),  # its normal equations (upper triangle of A kept)
+    ("TH_O", 9),  # the reference estimate its residual statistics are taken against
+    ("OBS_IC", 1),  # e^(-w_c t) since its filters started: the start transient's regressor
+    ("OBS_KL", 1),  # d Lc / d x1 = A1^2 / V1 + A2^2 / V2 [m] where its filters started (x1 noise in Lc)
+    ("ROWS_O", 1),
 ]
 
 OFFSETS: dict[str, tuple[int, int]] = {}
@@ -73,6 +82,14 @@ O_GATE_S = OFFSETS["GATE_S"][0]
 O_GATE_N = OFFSETS["GATE_N"][0]
 O_OUTLIERS = OFFSETS["OUTLIERS"][0]
 O_CLAMPED = OFFSETS["CLAMPED"][0]
+O_SVF_O = OFFSETS["SVF_O"][0]
+O_NE_A = OFFSETS["NE_A"][0]
+O_NE_B = OFFSETS["NE_B"][0]
+O_NE_YY = OFFSETS["NE_YY"][0]
+O_TH_O = OFFSETS["TH_O"][0]
+O_OBS_IC = OFFSETS["OBS_IC"][0]
+O_OBS_KL = OFFSETS["OBS_KL"][0]
+O_ROWS_O = OFFSETS["ROWS_O"][0]
 
 # Per-rig constants row (SI): the rig config the equations need.
 (C_A1, C_A2, C_V10, C_V20, C_PS, C_FL, C_KP, C_KF) = range(8)
@@ -80,5 +97,5 @@ RIG_CONST_SIZE = C_KF + 1
 
 # Hyperparameter row shared by a fleet (see ident_options.IdentOptions).
 (H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD,
- H_GATE2) = range(13)
-HYPER_SIZE = H_GATE2 + 1
+ H_GATE2, H_OBS, H_WC, H_WC_DECAY) = range(16)
+HYPER_SIZE = H_WC_DECAY + 1

@@ -182,7 +182,7 @@ class Fleet:
     def _bind(self) -> None:
         """The kernel's fixed arguments (rebuilt when the state arrays are reallocated)."""
         k, ra = self._k, self._ra
-        self._args = (self.states, self.consts, self.counts, self.phase, self.bands, k.hyper, k.m_f, k.m_c, k.g_f, k.g_c,
+        self._args = (self.states, self.consts, self.counts, self.phase, self.bands, k.hyper, k.m_f, k.m_c, k.m_o, k.g_f, k.g_c,
                       float(self.options.min_rows), self.eval_every, ra.index, ra.sign, ra.edges, ra.margins,
                       self.grade_z)
 

@@ -118,23 +118,16 @@ def _balance(m: np.ndarray) -> np.ndarray:
     return d
 
 
-def svf_matrices(a: float, h: float) -> np.ndarray:
-    """Discrete SVF of bandwidth a [rad/s] at sample period h [s], cubic hold.
+def cubic_hold_matrices(A: np.ndarray, B: np.ndarray, h: float) -> np.ndarray:
+    """Exact discretisation of x' = A x + B u for an input that is the Catmull-Rom cubic
+    through u(k-1) .. u(k+2) between samples k and k+1, at sample period h [s].
 
     Returns
     -------
-    array (3, 7)
-        ``[Phi | G0 G1 G2 G3]``: the layout the kernels read.
+    array (n, n + 4)
+        ``[Phi | G0 G1 G2 G3]``: x(k+1) = Phi x(k) + G0 u(k-1) + G1 u(k) + G2 u(k+1) + G3 u(k+2).
     """
-    if not (a > 0 and h > 0 and np.isfinite(a) and np.isfinite(h)):
-        raise ValueError(f"SVF needs a > 0 [rad/s] and h > 0 [s], got a={a!r}, h={h!r}")
-    n = ORDER
-    coeffs = np.poly(-a * np.ones(n))  # s^3 + 3a s^2 + 3a^2 s + a^3
-    A = np.zeros((n, n))
-    A[:-1, 1:] = np.eye(n - 1)
-    A[-1, :] = -coeffs[1:][::-1]
-    B = np.zeros(n)
-    B[-1] = a**n
+    n = A.shape[0]
     # M_p = integral_0^h e^(A (h - s)) B (s/h)^p ds, p = 0..3, from one matrix exponential: the
     # input's polynomial basis is the nilpotent chain appended to the state (Van Loan)
     em = np.zeros((n + 4, n + 4))
@@ -146,10 +139,38 @@ def svf_matrices(a: float, h: float) -> np.ndarray:
     # the chain's state p after t = tau h is tau^(p) / p!: convert to the powers tau^p
     fact = np.array([1.0, 1.0, 2.0, 6.0])
     M = ms[:n, n:n + 4] * fact  # column p: integral of e^(A(h-s)) B (s/h)^p ds
-    out = np.zeros((n, 7))
+    out = np.zeros((n, n + 4))
     out[:, :n] = ms[:n, :n]
     out[:, n:] = _matmul(M, _CATMULL_ROM.T)
     return out
+
+
+def lowpass_companion(poles: list[float], gain: float) -> tuple[np.ndarray, np.ndarray]:
+    """(A, B) of gain / prod(s + p_i) in companion form, state [y, y', ..., y^(n-1)]."""
+    coeffs = np.array([1.0])
+    for p in poles:
+        coeffs = np.convolve(coeffs, [1.0, p])  # exact for the small integers and reals used here
+    n = len(poles)
+    A = np.zeros((n, n))
+    A[:-1, 1:] = np.eye(n - 1)
+    A[-1, :] = -coeffs[1:][::-1]
+    B = np.zeros(n)
+    B[-1] = gain
+    return A, B
+
+
+def svf_matrices(a: float, h: float) -> np.ndarray:
+    """Discrete SVF of bandwidth a [rad/s] at sample period h [s], cubic hold.
+
+    Returns
+    -------
+    array (3, 7)
+        ``[Phi | G0 G1 G2 G3]``: the layout the kernels read.
+    """
+    if not (a > 0 and h > 0 and np.isfinite(a) and np.isfinite(h)):
+        raise ValueError(f"SVF needs a > 0 [rad/s] and h > 0 [s], got a={a!r}, h={h!r}")
+    A, B = lowpass_companion([a] * ORDER, a ** ORDER)  # s^3 + 3a s^2 + 3a^2 s + a^3
+    return cubic_hold_matrices(A, B, h)
 
 
 @njit(cache=True, error_model="numpy")
