@@ -144,6 +144,57 @@ def _valve_physical(th: np.ndarray, h: float, out: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
+def _valve_jacobian(th: np.ndarray, h: float, phys: np.ndarray, J: np.ndarray) -> None:
+    """d[2 zeta omega, omega^2, K_sv omega^2] / d[a1, a2, b0, b1, b2] (3, 5) at ``th`` (phys =
+    valve_physical(th, h)), analytically: 2 zeta omega = -ln(a2) / h in both pole cases; omega^2 =
+    (ln^2 r + acos^2 c) / h^2 with r = sqrt(a2), c = -a1 / (2 r) for complex poles, ln z_a ln z_b / h^2
+    for real ones. It replaced central differences (ten evaluations with logs and acos, a third of
+    the valve's read-out); a test holds the two equal. NaN where the poles are repeated or on the
+    unit circle's edge (c = +-1), where neither is defined."""
+    J[:, :] = np.nan
+    a1, a2 = th[0], th[1]
+    den = 1.0 + a1 + a2
+    k = X5_NOM * (th[2] + th[3] + th[4]) / den
+    w2 = phys[1]
+    disc = a1 * a1 - 4.0 * a2
+    if disc < 0.0:
+        r = math.sqrt(a2)
+        c = -a1 / (2.0 * r)
+        q = 1.0 - c * c
+        if not q > 0.0:
+            return
+        sr = math.log(r) / h
+        wd = math.acos(c) / h
+        dwd_dc = -1.0 / (h * math.sqrt(q))
+        dw2_da1 = 2.0 * wd * dwd_dc * (-1.0 / (2.0 * r))
+        dw2_da2 = 2.0 * sr / (2.0 * a2 * h) + 2.0 * wd * dwd_dc * a1 / (4.0 * a2 * r)
+    else:
+        sq = math.sqrt(disc)
+        if not sq > 0.0:
+            return
+        za = (-a1 + sq) / 2.0
+        zb = (-a1 - sq) / 2.0
+        sa = math.log(za) / h
+        sb = math.log(zb) / h
+        dsa_da1 = (-1.0 + a1 / sq) / 2.0 / (za * h)
+        dsb_da1 = (-1.0 - a1 / sq) / 2.0 / (zb * h)
+        dsa_da2 = -1.0 / sq / (za * h)
+        dsb_da2 = 1.0 / sq / (zb * h)
+        dw2_da1 = dsa_da1 * sb + sa * dsb_da1
+        dw2_da2 = dsa_da2 * sb + sa * dsb_da2
+    J[0, 0] = 0.0
+    J[0, 1] = -1.0 / (a2 * h)
+    J[1, 0] = dw2_da1
+    J[1, 1] = dw2_da2
+    J[0, 2] = J[0, 3] = J[0, 4] = 0.0
+    J[1, 2] = J[1, 3] = J[1, 4] = 0.0
+    dk_da = -k / den
+    J[2, 0] = dk_da * w2 + k * dw2_da1
+    J[2, 1] = dk_da * w2 + k * dw2_da2
+    J[2, 2] = J[2, 3] = J[2, 4] = X5_NOM / den * w2
+
+
+@njit(cache=True, error_model="numpy")
 def _valve_se(var: float) -> float:
     """SE from a quadratic form of the valve IV's symmetrised P: the IV's P is not a covariance
     and, symmetrised, can be indefinite (seen on records that start mid-run with steps in ug:
@@ -285,18 +336,7 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
         params[11], se[11] = _static_gain(th, P, s2 * kap)
         if math.isfinite(s2) and math.isfinite(phys[0]):
             J = np.zeros((3, 5))
-            fp = np.empty(3)
-            fm = np.empty(3)
-            for j in range(5):
-                d = 1e-6 * max(abs(th[j]), 1e-3)
-                t0 = th[j]
-                th[j] = t0 + d
-                _valve_physical(th, hyper[H_H], fp)
-                th[j] = t0 - d
-                _valve_physical(th, hyper[H_H], fm)
-                th[j] = t0
-                for i in range(3):
-                    J[i, j] = (fp[i] - fm[i]) / (2.0 * d)
+            _valve_jacobian(th, hyper[H_H], phys, J)
             f = s2 * kap
             for i in range(3):
                 acc = 0.0

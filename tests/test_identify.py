@@ -260,3 +260,34 @@ def test_staggered_fleet_evaluates_each_rig_at_its_own_phase():
     assert len(ev) == sum(len([n for n in range(1, 51) if (n + p) % 10 == 0]) for p in phases)
     per_tick = np.bincount(ev.sample // len(ids))
     assert per_tick.max() < len(ids) / 2
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(20.0, 400.0), st.floats(0.1, 3.0), st.floats(0.5, 5.0), st.floats(-0.5, 0.5))
+def test_valve_jacobian_equals_central_differences(omega, zeta, gain, skew):
+    """The valve read-out's analytic Jacobian (monitor.estimates._valve_jacobian) against central
+    differences of valve_physical, for under- and overdamped valves (complex and real poles)."""
+    from monitor.estimates import _valve_jacobian, valve_physical
+
+    h = 0.01
+    poles = np.roots([1.0, 2 * zeta * omega, omega ** 2])
+    if abs(poles[0] - poles[1]) < 1e-3 * omega:
+        return  # repeated poles: neither is defined
+    z = np.exp(poles * h)
+    if np.abs(z).min() < 0.02:
+        return  # a pole far beyond the 100 Hz sampling: a2 ~ 0, central differences lose it
+    a1, a2 = float(np.real(-(z[0] + z[1]))), float(np.real(z[0] * z[1]))
+    b = gain * (1 + a1 + a2) / 3.0
+    th = np.array([a1, a2, b * (1 + skew), b, b * (1 - skew)])
+    phys = valve_physical(th, h)
+    J = np.zeros((3, 5))
+    _valve_jacobian(th, h, phys, J)
+    fd = np.zeros((3, 5))
+    for j in range(5):
+        d = 1e-6 * max(abs(th[j]), 1e-3)
+        up, dn = th.copy(), th.copy()
+        up[j] += d
+        dn[j] -= d
+        fd[:, j] = (valve_physical(up, h) - valve_physical(dn, h)) / (2 * d)
+    for i in range(3):
+        np.testing.assert_allclose(J[i], fd[i], rtol=1e-5, atol=1e-6 * np.abs(fd[i]).max(), err_msg=str(i))
