@@ -20,12 +20,12 @@ import math
 
 import numpy as np
 
-from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, PSI_NOM, REF_EVERY
+from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, OBS_REFRESH, PSI_NOM, REF_EVERY
 from monitor.ident_options import IdentOptions, Kernels
 from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F
 from monitor.layout import (
     N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
-    O_NE_YY, O_OBS_IC, O_OBS_KL, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
+    O_NE_YY, O_OBS_IC, O_OBS_KL, O_OBS_SOL, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
     O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
     O_TH_V, O_XH, OBS_ORDER, OBS_STATE, RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
@@ -102,6 +102,7 @@ class NaiveIdentifier:
         self.rows_o = 0.0
         self.obs_ic = 0.0
         self.obs_kl = 0.0
+        self.obs_sol = np.zeros(4)  # the latest solution's B + f_v, f_c and variances (monitor.estimates)
 
     # -- pieces -----------------------------------------------------------------------------
 
@@ -379,6 +380,14 @@ class NaiveIdentifier:
                 self.th_o[4:8] = psi
         if self.rows_o > REF_EVERY:
             self._residual(4, y - ph @ self.th_o, o.lam)
+        if self.rows_o % OBS_REFRESH == 0:
+            # the solve with the chamber prior is read-out arithmetic: the shared one, on the packed state
+            from monitor.estimates import observer_refresh
+
+            st = self.state_row()
+            k = self._kernels
+            observer_refresh(st, k.hyper, k.g_f, k.g_c)
+            self.obs_sol = st[O_OBS_SOL:O_OBS_SOL + 4].copy()
 
     # -- read-out ---------------------------------------------------------------------------
 
@@ -411,13 +420,14 @@ class NaiveIdentifier:
         st[O_OUTLIERS:O_OUTLIERS + 4] = self.outliers
         st[O_CLAMPED] = self.clamped
         st[O_SVF_O:O_SVF_O + N_OBS * OBS_STATE] = self.svf_o.ravel()
-        st[O_NE_A:O_NE_A + N_OBS_PARAMS ** 2] = np.triu(self.ne_a).ravel()  # the kernel keeps the upper triangle
+        st[O_NE_A:O_NE_A + N_OBS_PARAMS * (N_OBS_PARAMS + 1) // 2] = self.ne_a[np.triu_indices(N_OBS_PARAMS)]  # packed by rows
         st[O_NE_B:O_NE_B + N_OBS_PARAMS] = self.ne_b
         st[O_NE_YY] = self.ne_yy
         st[O_TH_O:O_TH_O + N_OBS_PARAMS] = self.th_o
         st[O_ROWS_O] = self.rows_o
         st[O_OBS_IC] = self.obs_ic
         st[O_OBS_KL] = self.obs_kl
+        st[O_OBS_SOL:O_OBS_SOL + 4] = self.obs_sol
         return st
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:

@@ -76,7 +76,7 @@ def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, m
     for q in range(lo, hi):
         i = order[q]
         r = rig[i]
-        identify_step(states[r], consts[r], hyper, m_f, m_c, m_o, samples[i, 0], samples[i, 1], samples[i, 2],
+        identify_step(states[r], consts[r], hyper, m_f, m_c, m_o, g_f, g_c, samples[i, 0], samples[i, 1], samples[i, 2],
                       samples[i, 3], samples[i, 4], work)
         counts[r] += 1
         if (counts[r] + phase[r]) % eval_every == 0:

@@ -221,6 +221,7 @@ REPORTED = (1, 2)
 NOISY = (0, 1, 3, 7)  # the columns x1's noise reaches (m, B + f_v, K_t, psi4): S is zero elsewhere
 IC_NOM = 10.0  # nominal amplitude of the start transient [N]
 REF_EVERY = 16  # rows between updates of the reference estimate (TH_O) the residuals are taken against
+OBS_REFRESH = 32  # rows between the solutions the per-sample kernel keeps (OBS_SOL; ~0.45 s at 100 Hz)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -240,11 +241,12 @@ def ne_update(st: np.ndarray, phi: np.ndarray, y: float, lam: float, o_th_c: int
         ok = ok and math.isfinite(phi[i])
     if not ok:
         return np.nan
+    o = O_NE_A
     for i in range(n):
-        o = O_NE_A + n * i
         p = phi[i]
         for j in range(i, n):
-            st[o + j] = lam * st[o + j] + p * phi[j]
+            st[o] = lam * st[o] + p * phi[j]
+            o += 1
         st[O_NE_B + i] = lam * st[O_NE_B + i] + p * y
     st[O_NE_YY] = lam * st[O_NE_YY] + y * y
     rows = int(st[O_ROWS_O]) + 1
@@ -261,8 +263,14 @@ def ne_update(st: np.ndarray, phi: np.ndarray, y: float, lam: float, o_th_c: int
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _ne(st, i, j):
-    n = N_OBS_PARAMS
-    return st[O_NE_A + n * min(i, j) + max(i, j)]
+    return st[ne_index(i, j)]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def ne_index(i: int, j: int) -> int:
+    """Where A[i, j] of the normal equations lies in the state: the upper triangle, packed by rows."""
+    a, b = min(i, j), max(i, j)
+    return O_NE_A + a * N_OBS_PARAMS - a * (a - 1) // 2 + (b - a)
 
 
 @njit(cache=True, error_model="numpy")
@@ -316,15 +324,15 @@ def ne_new_transient(st: np.ndarray) -> None:
     normal equations (its Schur complement), so the new transient gets an amplitude of its own."""
     n = N_OBS_PARAMS
     k = n - 1
-    d = st[O_NE_A + n * k + k]
+    d = st[ne_index(k, k)]
     if d > 0.0:
         for i in range(k):
             for j in range(i, k):
-                st[O_NE_A + n * i + j] -= _ne(st, i, k) * _ne(st, j, k) / d
+                st[ne_index(i, j)] -= _ne(st, i, k) * _ne(st, j, k) / d
             st[O_NE_B + i] -= _ne(st, i, k) * st[O_NE_B + k] / d
         st[O_NE_YY] -= st[O_NE_B + k] * st[O_NE_B + k] / d
     for i in range(n):
-        st[O_NE_A + n * min(i, k) + max(i, k)] = 0.0
+        st[ne_index(i, k)] = 0.0
     st[O_NE_B + k] = 0.0
 
 
@@ -356,7 +364,7 @@ def solve_with_prior(st: np.ndarray, S: np.ndarray, w: float, kappa: float, mu: 
     x = np.empty(n)
     for i in range(n):
         for j in range(i, n):
-            A[i, j] = st[O_NE_A + n * i + j]
+            A[i, j] = st[ne_index(i, j)]
             A[j, i] = A[i, j]
     # the prior's precision c^-1, column by column
     lc = L[:4, :4]

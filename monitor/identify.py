@@ -90,6 +90,7 @@ from .layout import (
     O_RES_W,
     O_RING,
     O_ROWS,
+    O_ROWS_O,
     O_SLOW,
     O_SVF_C,
     O_SVF_F,
@@ -101,19 +102,15 @@ from .layout import (
     RING,
     SG_HALF,
 )
-from .force_observer import ne_new_transient, ne_update, obs_bank_init, obs_bank_step, obs_inputs, obs_row
+from .estimates import observer_refresh
+from .force_observer import OBS_REFRESH, ne_new_transient, ne_update, obs_bank_init, obs_bank_step, obs_inputs, obs_row
 from .outlier_gate import gate_step
+from .scaling import THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F  # noqa: F401  (re-exported)
 from .rls import riv_update, rls_update
 from .svf import svf_bank_init, svf_bank_step
 
 N_PARAMS = 12  # PARAM_NAMES: the paper's 11 and the valve's static gain K_sv
 
-# Nominal magnitudes: regressors are scaled so every RLS parameter is O(1).
-THETA_NOM_F = np.array([100.0, 1e4, 10.0, 1e6])  # m [kg], B+f_v [N s/m], f_c [N], K_t [N/m]
-Y_NOM_F = 1e4  # [N]
-THETA_NOM_C = np.array([1e-9, 1e-3, 1e-11, 1e-11])  # 1/beta [1/Pa], theta, C_ip, C_ep
-Y_NOM_C = 1e-3  # [m^3/s]
-X5_NOM = 1e-4  # [m]
 
 
 @njit(cache=True, error_model="numpy")
@@ -211,7 +208,8 @@ V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
 # for 3 % more.
 @njit(cache=True, error_model="numpy", inline="always")
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
-                  m_o: np.ndarray, ug: float, x1: float, x3: float, x4: float, x5: float, work: np.ndarray) -> None:
+                  m_o: np.ndarray, g_f: np.ndarray, g_c: np.ndarray, ug: float, x1: float, x3: float, x4: float,
+                  x5: float, work: np.ndarray) -> None:
     """Take one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place.
 
     The outlier gate holds it for two samples; the sample two before it is consumed now.
@@ -219,11 +217,11 @@ def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.nda
     """
     s = work[74:79]
     if gate_step(st, hyper, ug, x1, x3, x4, x5, s):
-        _consume(st, rc, hyper, m_f, m_c, m_o, s[0], s[1], s[2], s[3], s[4], work)
+        _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, s[0], s[1], s[2], s[3], s[4], work)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _consume(st, rc, hyper, m_f, m_c, m_o, ug, x1, x3, x4, x5, work):
+def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work):
     """Consume one released sample: noise estimate, valve, chamber and force rows (plain and
     with observed pressures)."""
     n = int(st[O_N])
@@ -322,7 +320,7 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, ug, x1, x3, x4, x5, work):
     if n - 2 * SG_HALF >= hyper[H_WARM]:
         _force_rows(st, hyper, yf, phi, lam, pmax, w)
         if obs:
-            _observer_rows(st, hyper, phi, yo, work[100:109], lam, work[114:148])
+            _observer_rows(st, hyper, phi, yo, work[100:109], lam, work[114:148], g_f, g_c)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -344,9 +342,10 @@ def _force_rows(st, hyper, yf, phi, lam, pmax, w):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _observer_rows(st, hyper, phi, yo, phi9, lam, w):
+def _observer_rows(st, hyper, phi, yo, phi9, lam, w, g_f, g_c):
     """The force balance with observed pressures (monitor.force_observer), on the rows the plain
-    force balance takes: phi holds that row's four scaled regressors."""
+    force balance takes: phi holds that row's four scaled regressors. Every OBS_REFRESH rows its
+    solution is refreshed into the state (monitor.estimates.observer_refresh)."""
     if st[O_SLOW] < hyper[H_GUARD]:
         return
     for i in range(4):
@@ -355,6 +354,8 @@ def _observer_rows(st, hyper, phi, yo, phi9, lam, w):
     e = ne_update(st, phi9, yv, lam, O_TH_C, THETA_NOM_C, w)
     if math.isfinite(e):
         _residual_stats(st, 4, e, lam)
+    if st[O_ROWS_O] % OBS_REFRESH == 0.0:
+        observer_refresh(st, hyper, g_f, g_c)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -393,10 +394,10 @@ def _chamber_rows(st, rc, yc, phi, lam, pmax, w):
 
 @njit(cache=True, error_model="numpy")
 def fleet_step(states: np.ndarray, consts: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
-               m_o: np.ndarray, rig: np.ndarray, samples: np.ndarray) -> None:
+               m_o: np.ndarray, g_f: np.ndarray, g_c: np.ndarray, rig: np.ndarray, samples: np.ndarray) -> None:
     """Consume a batch of samples in arrival order: sample i (ug, x1, x3, x4, x5) belongs to rig[i]."""
     work = np.empty(WORK_SIZE)
     for i in range(rig.shape[0]):
         r = rig[i]
-        identify_step(states[r], consts[r], hyper, m_f, m_c, m_o,
+        identify_step(states[r], consts[r], hyper, m_f, m_c, m_o, g_f, g_c,
                       samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4], work)

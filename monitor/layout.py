@@ -42,8 +42,9 @@ _FIELDS = [
     ("OUTLIERS", 4),  # samples the gate replaced, per sensor x1, x3, x4, x5
     ("CLAMPED", 1),  # samples whose x1 would have emptied a chamber (volume clamped, see identify)
     ("SVF_O", N_OBS * OBS_STATE),  # the force balance with observed pressures (monitor.force_observer)
-    ("NE_A", 81), ("NE_B", 9), ("NE_YY", 1),  # its normal equations (upper triangle of A kept)
+    ("NE_A", 45), ("NE_B", 9), ("NE_YY", 1),  # its normal equations (A's upper triangle, packed by rows)
     ("TH_O", 9),  # the reference estimate its residual statistics are taken against
+    ("OBS_SOL", 4),  # its latest solution's B + f_v, f_c and their variances (scaled; 0: none)
     ("OBS_IC", 1),  # e^(-w_c t) since its filters started: the start transient's regressor
     ("OBS_KL", 1),  # d Lc / d x1 = A1^2 / V1 + A2^2 / V2 [m] where its filters started (x1 noise in Lc)
     ("ROWS_O", 1),
@@ -87,6 +88,7 @@ O_NE_A = OFFSETS["NE_A"][0]
 O_NE_B = OFFSETS["NE_B"][0]
 O_NE_YY = OFFSETS["NE_YY"][0]
 O_TH_O = OFFSETS["TH_O"][0]
+O_OBS_SOL = OFFSETS["OBS_SOL"][0]
 O_OBS_IC = OFFSETS["OBS_IC"][0]
 O_OBS_KL = OFFSETS["OBS_KL"][0]
 O_ROWS_O = OFFSETS["ROWS_O"][0]

@@ -75,9 +75,7 @@ def test_solve_with_prior_equals_numpy(seed):
     y = x @ rng.normal(size=n) + rng.normal(size=300)
     A, b, yy = x.T @ x, x.T @ y, y @ y
     stt = np.zeros(STATE_SIZE)
-    for i in range(n):
-        for j in range(i, n):
-            stt[O_NE_A + n * i + j] = A[i, j]
+    stt[O_NE_A:O_NE_A + n * (n + 1) // 2] = A[np.triu_indices(n)]  # packed by rows, as the kernel keeps it
     stt[O_NE_B:O_NE_B + n], stt[O_NE_YY] = b, yy
     S = np.zeros((n, n))
     cols = [0, 1, 3, 7]

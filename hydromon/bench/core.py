@@ -76,7 +76,7 @@ def bench_identify_single(samples: np.ndarray, repeats: int = 3) -> float:
     def one_pass():
         states = new_state(k.hyper)[None, :]
         for s in rows:
-            fleet_step(states, consts, k.hyper, k.m_f, k.m_c, k.m_o, rig, s)
+            fleet_step(states, consts, k.hyper, k.m_f, k.m_c, k.m_o, k.g_f, k.g_c, rig, s)
 
     return _median_rate(n, one_pass, repeats)
 

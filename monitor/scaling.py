@@ -1,0 +1,13 @@
+"""Nominal magnitudes the identifier's RLS rows are scaled by, so every parameter is O(1) (SI).
+
+Kept apart from ``monitor.identify`` so the read-out (``monitor.estimates``) and the per-sample
+kernel can share them without importing each other.
+"""
+
+import numpy as np
+
+THETA_NOM_F = np.array([100.0, 1e4, 10.0, 1e6])  # m [kg], B+f_v [N s/m], f_c [N], K_t [N/m]
+Y_NOM_F = 1e4  # [N]
+THETA_NOM_C = np.array([1e-9, 1e-3, 1e-11, 1e-11])  # 1/beta [1/Pa], theta, C_ip, C_ep
+Y_NOM_C = 1e-3  # [m^3/s]
+X5_NOM = 1e-4  # [m]
