@@ -22,10 +22,11 @@ import numpy as np
 
 from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, OBS_REFRESH, PSI_NOM, REF_EVERY
 from monitor.ident_options import IdentOptions, Kernels
-from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F
+from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
+from monitor.ident_options import STEP_GUARD
 from monitor.layout import (
     N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
-    O_NE_YY, O_OBS_IC, O_OBS_KL, O_OBS_SOL, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
+    O_NE_YY, O_OBS_IC, O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS_K, O_SINCE_STEP, O_SVF_K, O_TH_K, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
     O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
     O_TH_V, O_XH, OBS_ORDER, OBS_STATE, RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
@@ -103,6 +104,11 @@ class NaiveIdentifier:
         self.obs_ic = 0.0
         self.obs_kl = 0.0
         self.obs_sol = np.zeros(4)  # the latest solution's B + f_v, f_c and variances (monitor.estimates)
+        # the valve's static gain (monitor.identify._static_gain_rows)
+        self.svf_k = np.zeros((2, SVF_STATE))
+        self.th_k, self.P_k = np.zeros(3), np.eye(3) * o.p0
+        self.rows_k = 0.0
+        self.since_step = 0.0
 
     # -- pieces -----------------------------------------------------------------------------
 
@@ -305,6 +311,7 @@ class NaiveIdentifier:
         yf = np.empty((3, 3))
         for i in range(3):
             self.svf_f[i], yf[i] = self._svf(self.f_mats, self.svf_f[i], u_f[i])
+        self._static_gain(n, c1)
         yo = self._observer_filters(n, c1, c3, c4, self._at(SG_HALF, 4)) if o.pressure_observer else None
         if n - 2 * SG_HALF < self.warm or self.slow < self.guard:
             return
@@ -318,6 +325,28 @@ class NaiveIdentifier:
             self._residual(0, y - phi @ self.th_f, o.lam)
         if yo is not None:
             self._observer_row(phi, yo)
+
+    def _static_gain(self, n: int, x1: float) -> None:
+        """The valve's static gain: x5 = K_sv du - (2 zeta / omega) x5' - (1 / omega^2) x5'' under the
+        force SVF, at the force rows' instant, skipping rows whose filter memory holds a step in ug."""
+        c, o = self.config, self.options
+        u = np.array([self._at(SG_HALF, 4), c.K_p * (self._at(SG_HALF, 0) - c.K_f * x1)])
+        if n == 2 * SG_HALF:
+            self.svf_k = np.array([self._svf_init(self.f_mats, v) for v in u])
+            self.since_step = 0.0
+        yk = np.empty((2, 3))
+        for i in range(2):
+            self.svf_k[i], yk[i] = self._svf(self.f_mats, self.svf_k[i], u[i])
+        d2 = self._at(SG_HALF - 1, 0) - 2.0 * self._at(SG_HALF, 0) + self._at(SG_HALF + 1, 0)
+        self.since_step = 0.0 if abs(d2) > o.step_tol else self.since_step + 1.0
+        if n - 2 * SG_HALF < self.warm or self.since_step < math.ceil(STEP_GUARD / self.h):
+            return
+        phi = np.array([yk[1, 0], -yk[0, 1], -yk[0, 2]]) * THETA_NOM_K / X5_NOM
+        y = yk[0, 0] / X5_NOM
+        self.th_k, self.P_k, e = self._rls(self.th_k, self.P_k, phi, y, o.lam)
+        if math.isfinite(e):
+            self.rows_k += 1.0
+            self._residual(5, y - phi @ self.th_k, o.lam)
 
     def _observer_filters(self, n: int, x1: float, x3: float, x4: float, x5: float) -> np.ndarray:
         """The observer filter bank (monitor.force_observer) at the force rows' instant: outputs (5, 4)."""
@@ -428,6 +457,10 @@ class NaiveIdentifier:
         st[O_OBS_IC] = self.obs_ic
         st[O_OBS_KL] = self.obs_kl
         st[O_OBS_SOL:O_OBS_SOL + 4] = self.obs_sol
+        st[O_SVF_K:O_SVF_K + 2 * SVF_STATE] = self.svf_k.ravel()
+        st[O_TH_K:O_TH_K + 3], st[O_P_K:O_P_K + 9] = self.th_k, self.P_k.ravel()
+        st[O_ROWS_K] = self.rows_k
+        st[O_SINCE_STEP] = self.since_step
         return st
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:

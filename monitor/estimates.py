@@ -6,10 +6,12 @@ CdW_sqrt_rho [m^2.5/kg^0.5], C_ip, C_ep [m^3/(s Pa)], two_zeta_omega [rad/s],
 omega_sv2 [rad^2/s^2], K_sv_omega_sv2 [m/(V s^2)], K_sv [m/V].
 
 The valve's static gain K_sv is read out on its own, not as K_sv omega^2 / omega^2: it needs
-only the ARX's DC gain, which any input identifies, while omega^2 needs excitation near the
-valve's bandwidth. A record that starts mid-run on a smooth input has none (omega^2 and
-K_sv omega^2 off by the same factor: a true 1.2 read 1.6-3.6 joining 3 s in, README; their ratio within 0.02 %), so grading K_sv
-is what still sees a valve that lost gain.
+only the valve's low-frequency response, which any input identifies, while omega^2 needs
+excitation near the valve's bandwidth. A record that starts mid-run on a smooth input has none
+(omega^2 and K_sv omega^2 off by the same factor: a true 1.2 read 1.6-3.6 joining 3 s in,
+README), so grading K_sv is what still sees a valve that lost gain. It comes from rows of its
+own (the continuous-time valve equation under the force SVF, ``monitor.identify._static_gain_rows``),
+not from the ARX's DC gain, which x1's noise biased at stress noise.
 
 Standard errors: sigma^2 kappa P, with sigma^2 the residual variance and kappa the
 long-run variance factor 1 + 2 sum_j w_j rho_j of the residuals (Bartlett weights over
@@ -28,9 +30,9 @@ from numba import njit
 from .force_observer import N_OBS_PARAMS, PSI_NOM, REPORTED, chamber_prior, solve_with_prior
 from .layout import (
     H_BC, H_H, H_OBS, N_LAGS, O_BC, O_NOISE, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_W,
-    O_OBS_KL, O_OBS_SOL, O_ROWS, O_ROWS_O, O_TH_C, O_TH_F, O_TH_V,
+    O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS, O_ROWS_K, O_ROWS_O, O_TH_C, O_TH_K, O_TH_F, O_TH_V,
 )
-from .scaling import THETA_NOM_C, THETA_NOM_F, X5_NOM, Y_NOM_C, Y_NOM_F
+from .scaling import THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
 from .smallmat import inv_small
 
 
@@ -204,23 +206,16 @@ def _valve_se(var: float) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def _static_gain(th: np.ndarray, P: np.ndarray, f: float) -> tuple[float, float]:
-    """K_sv [m/V] = X5_NOM (b0 + b1 + b2) / (1 + a1 + a2) and its SE by the (exact) gradient,
-    with f = sigma^2 kappa (inf: SE inf). NaN/inf when the ARX has no DC gain."""
-    den = 1.0 + th[0] + th[1]
-    if den == 0.0:
+def _static_gain(st: np.ndarray) -> tuple[float, float]:
+    """K_sv [m/V] and its SE from the static-gain rows (monitor.identify._static_gain_rows);
+    NaN / inf before they have any."""
+    if not st[O_ROWS_K] > 3:
         return np.nan, np.inf
-    k = X5_NOM * (th[2] + th[3] + th[4]) / den
-    if not math.isfinite(f):
+    s2, kap = _sigma2_kappa(st, (5,), 3)
+    k = st[O_TH_K] * THETA_NOM_K[0]
+    if not math.isfinite(s2):
         return k, np.inf
-    g = np.empty(5)
-    g[0] = g[1] = -k / den
-    g[2] = g[3] = g[4] = X5_NOM / den
-    acc = 0.0
-    for a in range(5):
-        for b in range(5):
-            acc += g[a] * 0.5 * (P[a, b] + P[b, a]) * g[b]
-    return k, _valve_se(acc * f)
+    return k, _valve_se(st[O_P_K] * s2 * kap) * THETA_NOM_K[0]
 
 
 @njit(cache=True, error_model="numpy")
@@ -361,7 +356,8 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
             se[4 + i] = math.sqrt(max(cov[i, i], 0.0)) if fin else np.inf
     if hyper[H_OBS] > 0.0:
         _observed_force(st, params, se)
-    # valve
+    # valve: its static gain from its own rows, its dynamics from the ARX with IV
+    params[11], se[11] = _static_gain(st)
     if st[O_ROWS + 2] > 6:
         th = st[O_TH_V:O_TH_V + 5].copy()
         P = st[O_P_V:O_P_V + 25].reshape((5, 5))
@@ -369,7 +365,6 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
         s2, kap = _sigma2_kappa(st, (3,), 5)
         for i in range(3):
             params[8 + i] = phys[i]
-        params[11], se[11] = _static_gain(th, P, s2 * kap)
         if math.isfinite(s2) and math.isfinite(phys[0]):
             J = np.zeros((3, 5))
             _valve_jacobian(th, hyper[H_H], phys, J)

@@ -11,7 +11,7 @@ SG_HALF = 3  # half-width of the centred velocity window [samples]
 RING = 2 * SG_HALF + 1
 N_CH = 5  # ug, x1, x3, x4, x5
 N_LAGS = 8  # residual autocorrelation lags used for honest standard errors
-N_STREAMS = 5  # residual streams: force, chamber 1, chamber 2, valve, force with observed pressures
+N_STREAMS = 6  # residual streams: force, chamber 1, chamber 2, valve, force with observed pressures, static gain
 SVF_STATE = 6  # per filtered signal: the filter's 3 states and the last 3 inputs (monitor.svf)
 N_FORCE_SVF = 3  # x1, Q1, sign(v)
 N_CH_SVF = 10  # x3, x4, L1, L2, w1 x5 z1, w2 x5 z2, w1 dp, w2 dp, w1 x3, w2 x4 (monitor.identify)
@@ -48,6 +48,10 @@ _FIELDS = [
     ("OBS_IC", 1),  # e^(-w_c t) since its filters started: the start transient's regressor
     ("OBS_KL", 1),  # d Lc / d x1 = A1^2 / V1 + A2^2 / V2 [m] where its filters started (x1 noise in Lc)
     ("ROWS_O", 1),
+    ("SVF_K", 2 * SVF_STATE),  # the valve's static gain: x5 and du through the force SVF (monitor.identify)
+    ("TH_K", 3), ("P_K", 9),
+    ("ROWS_K", 1),
+    ("SINCE_STEP", 1),  # samples since a step in ug at the static-gain rows' instant
 ]
 
 OFFSETS: dict[str, tuple[int, int]] = {}
@@ -92,6 +96,11 @@ O_OBS_SOL = OFFSETS["OBS_SOL"][0]
 O_OBS_IC = OFFSETS["OBS_IC"][0]
 O_OBS_KL = OFFSETS["OBS_KL"][0]
 O_ROWS_O = OFFSETS["ROWS_O"][0]
+O_SVF_K = OFFSETS["SVF_K"][0]
+O_TH_K = OFFSETS["TH_K"][0]
+O_P_K = OFFSETS["P_K"][0]
+O_ROWS_K = OFFSETS["ROWS_K"][0]
+O_SINCE_STEP = OFFSETS["SINCE_STEP"][0]
 
 # Per-rig constants row (SI): the rig config the equations need.
 (C_A1, C_A2, C_V10, C_V20, C_PS, C_FL, C_KP, C_KF) = range(8)
@@ -99,5 +108,5 @@ RIG_CONST_SIZE = C_KF + 1
 
 # Hyperparameter row shared by a fleet (see ident_options.IdentOptions).
 (H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD,
- H_GATE2, H_OBS, H_WC, H_WC_DECAY) = range(16)
-HYPER_SIZE = H_WC_DECAY + 1
+ H_GATE2, H_OBS, H_WC, H_WC_DECAY, H_STEP_GUARD) = range(17)
+HYPER_SIZE = H_STEP_GUARD + 1

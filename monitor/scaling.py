@@ -11,3 +11,4 @@ Y_NOM_F = 1e4  # [N]
 THETA_NOM_C = np.array([1e-9, 1e-3, 1e-11, 1e-11])  # 1/beta [1/Pa], theta, C_ip, C_ep
 Y_NOM_C = 1e-3  # [m^3/s]
 X5_NOM = 1e-4  # [m]
+THETA_NOM_K = np.array([2.5e-4, 1e-2, 1e-4])  # K_sv [m/V], 2 zeta / omega [s], 1 / omega^2 [s^2]
