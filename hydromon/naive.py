@@ -26,7 +26,7 @@ from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NO
 from monitor.ident_options import STEP_GUARD
 from monitor.layout import (
     N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
-    O_NE_YY, O_OBS_IC, O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS_K, O_SINCE_STEP, O_SVF_K, O_TH_K, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
+    O_NE_YY, O_OBS_IC, O_OBS_IN, O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS_K, O_SINCE_STEP, O_SVF_K, O_TH_K, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
     O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
     O_TH_V, O_XH, OBS_ORDER, OBS_STATE, RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
@@ -95,6 +95,7 @@ class NaiveIdentifier:
         self.outliers = np.zeros(4)
         self.clamped = 0.0
         # the force balance with observed pressures (monitor.force_observer): filters, normal equations
+        self.obs_in = np.zeros((SG_HALF + 1, N_OBS))  # newest first
         self.svf_o = np.zeros((N_OBS, OBS_STATE))
         self.ne_a = np.zeros((N_OBS_PARAMS, N_OBS_PARAMS))
         self.ne_b = np.zeros(N_OBS_PARAMS)
@@ -268,6 +269,11 @@ class NaiveIdentifier:
         z1, z2 = _orifice_z(x5, x3, x4, c.p_s)
         u_c = np.array([x3, x4, math.log1p(r1), math.log1p(r2),
                         w1 * x5 * z1, w2 * x5 * z2, w1 * (x3 - x4), w2 * (x3 - x4), w1 * x3, w2 * x4])
+        if o.pressure_observer:  # the observer's inputs at this sample, kept for the force rows' instant
+            g1, g2 = c.A1 * w1 / c.V10, c.A2 * w2 / c.V20
+            new = [c.A1 * x3 - c.A2 * x4 - c.F_L, c.A1 * u_c[2] - c.A2 * u_c[3], x5 * (g1 * z1 + g2 * z2),
+                   -(x3 - x4) * (g1 + g2), -(g1 * x3 - g2 * x4)]
+            self.obs_in = np.vstack(([new], self.obs_in[:-1]))
         if n == 0:
             self.svf_c = np.array([self._svf_init(self.c_mats, u) for u in u_c])
         yc = np.empty((10, 3))
@@ -448,6 +454,7 @@ class NaiveIdentifier:
         st[O_GATE_S:O_GATE_S + 4], st[O_GATE_N] = self.gate_s, self.gate_n
         st[O_OUTLIERS:O_OUTLIERS + 4] = self.outliers
         st[O_CLAMPED] = self.clamped
+        st[O_OBS_IN:O_OBS_IN + N_OBS * (SG_HALF + 1)] = self.obs_in.ravel()
         st[O_SVF_O:O_SVF_O + N_OBS * OBS_STATE] = self.svf_o.ravel()
         st[O_NE_A:O_NE_A + N_OBS_PARAMS * (N_OBS_PARAMS + 1) // 2] = self.ne_a[np.triu_indices(N_OBS_PARAMS)]  # packed by rows
         st[O_NE_B:O_NE_B + N_OBS_PARAMS] = self.ne_b

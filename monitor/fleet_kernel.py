@@ -12,7 +12,7 @@ from .names import PARAM_NAMES
 
 from .estimates import estimates
 from .grading import grade_kernel
-from .identify import WORK_SIZE, identify_step
+from .identify import WORK_SIZE, identify_step, scratch_2d
 from .layout import O_CLAMPED, O_ROWS
 from .plausibility import any_impossible
 
@@ -73,11 +73,12 @@ def _run(order, lo, hi, states, consts, counts, phase, bands, hyper, m_f, m_c, m
          slot):
     """Samples order[lo:hi] of the batch, in that order; events from ``slot`` on. Returns the next slot."""
     work, p, s, conv = _scratch(ev_params.shape[1])
+    bufs = scratch_2d()
     for q in range(lo, hi):
         i = order[q]
         r = rig[i]
         identify_step(states[r], consts[r], hyper, m_f, m_c, m_o, g_f, g_c, samples[i, 0], samples[i, 1], samples[i, 2],
-                      samples[i, 3], samples[i, 4], work)
+                      samples[i, 3], samples[i, 4], work, bufs)
         counts[r] += 1
         if (counts[r] + phase[r]) % eval_every == 0:
             _evaluate(r, i, states, counts, bands, hyper, g_f, g_c, min_rows, index, sign, edges, margins, z,
@@ -106,19 +107,24 @@ def pipeline_step(states, consts, counts, phase, bands, hyper, m_f, m_c, m_o, g_
 
 
 @njit(cache=True, error_model="numpy")
-def partition_rigs(rig, n_parts):
-    """Sample indices grouped by part (rig % n_parts), arrival order kept within a part, and
-    the parts' start offsets (n_parts + 1,)."""
+def partition_rigs(rig, n_parts, n_rows):
+    """Sample indices grouped by part, arrival order kept within a part, and the parts' start
+    offsets (n_parts + 1,). Part k takes the rows [k n_rows / n_parts, (k + 1) n_rows / n_parts):
+    contiguous blocks, so two threads never write the same cache line of the per-rig arrays
+    (counts, bands), which rig % n_parts made them do for every sample."""
     m = rig.shape[0]
     start = np.zeros(n_parts + 1, np.int64)
+    part = np.empty(m, np.int64)
     for i in range(m):
-        start[rig[i] % n_parts + 1] += 1
+        t = min(rig[i] * n_parts // max(n_rows, 1), n_parts - 1)
+        part[i] = t
+        start[t + 1] += 1
     for t in range(n_parts):
         start[t + 1] += start[t]
     order = np.empty(m, np.int64)
     fill = start[:-1].copy()
     for i in range(m):
-        t = rig[i] % n_parts
+        t = part[i]
         order[fill[t]] = i
         fill[t] += 1
     return order, start

@@ -54,8 +54,6 @@ import math
 import numpy as np
 from numba import njit
 
-from plant_sim.model import orifice_z
-
 from .layout import N_OBS, O_NE_A, O_NE_B, O_NE_YY, O_ROWS_O, O_TH_O, OBS_ORDER, OBS_STATE
 from .smallmat import cholesky, cholesky_solve
 from .svf import cubic_hold_matrices, lowpass_companion
@@ -78,21 +76,17 @@ def obs_matrices(a: float, wc: float, h: float) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def obs_inputs(a1: float, a2: float, v10: float, v20: float, ps: float, fl: float, w1: float, w2: float,
-               l1: float, l2: float, x3: float, x4: float, x5: float, u: np.ndarray) -> None:
-    """The five filtered signals at one instant into u (5,): Fm [N], Lc [m^2], G_theta, G_ip, G_ep.
-
-    w_i = V_i0 / V_i and l_i = ln(V_i / V_i0) come from the caller (clamped there as the chamber
-    rows clamp them); x3, x4 [Pa], x5 [m].
-    """
-    z1, z2 = orifice_z(x5, x3, x4, ps)
-    g1 = a1 * w1 / v10  # A1 / V1
-    g2 = a2 * w2 / v20  # A2 / V2
-    u[0] = a1 * x3 - a2 * x4 - fl
-    u[1] = a1 * l1 - a2 * l2
-    u[2] = x5 * (g1 * z1 + g2 * z2)
-    u[3] = -(x3 - x4) * (g1 + g2)
-    u[4] = -(g1 * x3 - g2 * x4)
+def obs_inputs(st: np.ndarray, o: int, a1: float, a2: float, fl: float, g1: float, g2: float, l1: float,
+               l2: float, x3: float, x4: float, x5: float, z1: float, z2: float) -> None:
+    """The five filtered signals at one instant into st[o:o + 5]: Fm [N], Lc [m^2], G_theta, G_ip,
+    G_ep, from the chamber rows' quantities at that instant: g_i = A_i / V_i [1/m], l_i =
+    ln(V_i / V_i0) (both clamped as the chamber rows clamp them) and the orifice factors z_i
+    [Pa^0.5]; x3, x4 [Pa], x5 [m]."""
+    st[o] = a1 * x3 - a2 * x4 - fl
+    st[o + 1] = a1 * l1 - a2 * l2
+    st[o + 2] = x5 * (g1 * z1 + g2 * z2)
+    st[o + 3] = -(x3 - x4) * (g1 + g2)
+    st[o + 4] = -(g1 * x3 - g2 * x4)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

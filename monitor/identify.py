@@ -74,6 +74,7 @@ from .layout import (
     H_WC_DECAY,
     N_CH,
     N_CH_SVF,
+    N_OBS,
     N_LAGS,
     O_BC,
     O_CLAMPED,
@@ -81,6 +82,7 @@ from .layout import (
     O_NOISE,
     O_NOISE_N,
     O_OBS_IC,
+    O_OBS_IN,
     O_OBS_KL,
     O_P_C,
     O_P_F,
@@ -205,6 +207,13 @@ def _valve_row(st, rc, hyper, phi, z):
 
 
 WORK_SIZE = 160
+
+
+@njit(cache=True, error_model="numpy")
+def scratch_2d() -> tuple:
+    """The per-sample path's 2-D scratch: filter outputs of the force (3, 3), chamber (N_CH_SVF, 3),
+    observer (5, 4) and static-gain (2, 3) banks."""
+    return (np.empty((3, 3)), np.empty((N_CH_SVF, 3)), np.empty((5, 4)), np.empty((2, 3)))
 V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
 
 # The per-sample pieces (gate_step, identify_step, _consume, _force_rows, _chamber_rows) are inlined
@@ -215,19 +224,21 @@ V_MIN = 0.01  # smallest chamber volume the chamber rows take, relative to V_i0
 @njit(cache=True, error_model="numpy", inline="always")
 def identify_step(st: np.ndarray, rc: np.ndarray, hyper: np.ndarray, m_f: np.ndarray, m_c: np.ndarray,
                   m_o: np.ndarray, g_f: np.ndarray, g_c: np.ndarray, ug: float, x1: float, x3: float, x4: float,
-                  x5: float, work: np.ndarray) -> None:
+                  x5: float, work: np.ndarray, bufs: tuple) -> None:
     """Take one sample (SI: V, m, Pa, Pa, m) of one rig, updating its state row in place.
 
     The outlier gate holds it for two samples; the sample two before it is consumed now.
-    ``work`` is scratch space of WORK_SIZE floats (so the per-sample path allocates nothing).
+    ``work`` is scratch space of WORK_SIZE floats and ``bufs`` the 2-D scratch of ``scratch_2d``
+    (so the per-sample path allocates nothing, and reshapes nothing: a reshape of a slice calls
+    numba's helper, ~100 instructions).
     """
     s = work[74:79]
     if gate_step(st, hyper, ug, x1, x3, x4, x5, s):
-        _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, s[0], s[1], s[2], s[3], s[4], work)
+        _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, s[0], s[1], s[2], s[3], s[4], work, bufs)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work):
+def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work, bufs):
     """Consume one released sample: noise estimate, valve, chamber and force rows (plain and
     with observed pressures)."""
     n = int(st[O_N])
@@ -246,7 +257,7 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work):
         y, step = _valve_row(st, rc, hyper, phi5, z5)
         if not step:
             th = st[O_TH_V:O_TH_V + 5]
-            P = st[O_P_V:O_P_V + 25].reshape((5, 5))
+            P = st[O_P_V:O_P_V + 25]
             e = riv_update(th, P, phi5, z5, y, lam, pmax, w)
             if math.isfinite(e):
                 st[O_ROWS + 2] += 1.0
@@ -274,9 +285,17 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work):
     u[2], u[3] = math.log1p(r1), math.log1p(r2)
     u[4], u[5] = w1 * x5 * z1, w2 * x5 * z2
     u[6], u[7], u[8], u[9] = w1 * dp, w2 * dp, w1 * x3, w2 * x4
+    if hyper[H_OBS] > 0.0:
+        # the observer's five inputs at this sample, from this part's volumes and orifice factors
+        # (recomputing them at the force rows' instant cost two log1p and the orifice law), kept
+        # SG_HALF samples for that instant
+        for i in range(O_OBS_IN + N_OBS * (SG_HALF + 1) - 1, O_OBS_IN + N_OBS - 1, -1):
+            st[i] = st[i - N_OBS]
+        obs_inputs(st, O_OBS_IN, a1, a2, rc[C_FL], a1 * w1 / rc[C_V10], a2 * w2 / rc[C_V20], u[2], u[3],
+                   x3, x4, x5, z1, z2)
     if n == 0:
         svf_bank_init(st, O_SVF_C, u)
-    yc = work[29:59].reshape((N_CH_SVF, 3))
+    yc = bufs[1]
     svf_bank_step(m_c, st, O_SVF_C, u, yc)
     if n >= hyper[H_WARM]:
         _chamber_rows(st, rc, yc, phi, lam, pmax, w)
@@ -302,7 +321,7 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work):
     u[0], u[1], u[2] = c1, q1, sg
     if n == 2 * SG_HALF:
         svf_bank_init(st, O_SVF_F, u)
-    yf = work[20:29].reshape((3, 3))
+    yf = bufs[0]
     svf_bank_step(m_f, st, O_SVF_F, u, yf)
     # the valve's static gain at the same instant (its own SVF rows, see _static_gain_rows)
     uk = work[148:150]
@@ -311,7 +330,7 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work):
     if n == 2 * SG_HALF:
         svf_bank_init(st, O_SVF_K, uk)
         st[O_SINCE_STEP] = 0.0
-    yk = work[150:156].reshape((2, 3))
+    yk = bufs[3]
     svf_bank_step(m_f, st, O_SVF_K, uk, yk)
     if abs(_ring(st, SG_HALF - 1, 0) - 2.0 * _ring(st, SG_HALF, 0) + _ring(st, SG_HALF + 1, 0)) > hyper[H_STEP_TOL]:
         st[O_SINCE_STEP] = 0.0
@@ -320,19 +339,16 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work):
     if n - 2 * SG_HALF >= hyper[H_WARM] and st[O_SINCE_STEP] >= hyper[H_STEP_GUARD]:
         _static_gain_rows(st, yk, work[156:159], lam, pmax, w)
     obs = hyper[H_OBS] > 0.0
-    yo = work[80:100].reshape((5, 4))
+    yo = bufs[2]
     if obs:
-        # the observer's signals at the same instant c
-        r1 = max(a1 * c1 / rc[C_V10], V_MIN - 1.0)
-        r2 = max(-a2 * c1 / rc[C_V20], V_MIN - 1.0)
-        uo = work[109:114]
-        obs_inputs(a1, a2, rc[C_V10], rc[C_V20], rc[C_PS], rc[C_FL], 1.0 / (1.0 + r1), 1.0 / (1.0 + r2),
-                   math.log1p(r1), math.log1p(r2), _ring(st, SG_HALF, 2), _ring(st, SG_HALF, 3),
-                   _ring(st, SG_HALF, 4), uo)
+        # the observer's inputs at the same instant c
+        uo = st[O_OBS_IN + N_OBS * SG_HALF:O_OBS_IN + N_OBS * (SG_HALF + 1)]
         if n == 2 * SG_HALF:
             obs_bank_init(st, O_SVF_O, uo, hyper[H_WC])
             ne_new_transient(st)
             st[O_OBS_IC] = 1.0
+            r1 = max(a1 * c1 / rc[C_V10], V_MIN - 1.0)
+            r2 = max(-a2 * c1 / rc[C_V20], V_MIN - 1.0)
             st[O_OBS_KL] = a1 * a1 / (rc[C_V10] * (1.0 + r1)) + a2 * a2 / (rc[C_V20] * (1.0 + r2))
         hold = n - 2 * SG_HALF < 2
         obs_bank_step(m_o, st, O_SVF_O, uo, yo, hold)
@@ -354,7 +370,7 @@ def _force_rows(st, hyper, yf, phi, lam, pmax, w):
     phi[3] = yf[0, 0] * THETA_NOM_F[3] / Y_NOM_F
     yv = yf[1, 0] / Y_NOM_F
     th = st[O_TH_F:O_TH_F + 4]
-    P = st[O_P_F:O_P_F + 16].reshape((4, 4))
+    P = st[O_P_F:O_P_F + 16]
     e = rls_update(th, P, phi, yv, lam, pmax, w) if force_ok else np.nan
     if math.isfinite(e):
         st[O_ROWS] += 1.0
@@ -377,7 +393,7 @@ def _static_gain_rows(st, yk, phi, lam, pmax, w):
     phi[2] = -yk[0, 2] * (THETA_NOM_K[2] / X5_NOM)
     yv = yk[0, 0] / X5_NOM
     th = st[O_TH_K:O_TH_K + 3]
-    P = st[O_P_K:O_P_K + 9].reshape((3, 3))
+    P = st[O_P_K:O_P_K + 9]
     e = rls_update(th, P, phi, yv, lam, pmax, w)
     if math.isfinite(e):
         st[O_ROWS_K] += 1.0
@@ -407,7 +423,7 @@ def _chamber_rows(st, rc, yc, phi, lam, pmax, w):
     lam2 = math.sqrt(lam)
     v10, v20 = rc[C_V10], rc[C_V20]
     th = st[O_TH_C:O_TH_C + 4]
-    P = st[O_P_C:O_P_C + 16].reshape((4, 4))
+    P = st[O_P_C:O_P_C + 16]
     s1 = THETA_NOM_C / Y_NOM_C
     # each chamber equation times V_i0 / V_i: the rows stay in flow units [m^3/s], as the paper weights them
     phi[0] = v10 * yc[0, 1] * s1[0]
@@ -440,7 +456,8 @@ def fleet_step(states: np.ndarray, consts: np.ndarray, hyper: np.ndarray, m_f: n
                m_o: np.ndarray, g_f: np.ndarray, g_c: np.ndarray, rig: np.ndarray, samples: np.ndarray) -> None:
     """Consume a batch of samples in arrival order: sample i (ug, x1, x3, x4, x5) belongs to rig[i]."""
     work = np.empty(WORK_SIZE)
+    bufs = scratch_2d()
     for i in range(rig.shape[0]):
         r = rig[i]
         identify_step(states[r], consts[r], hyper, m_f, m_c, m_o, g_f, g_c,
-                      samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4], work)
+                      samples[i, 0], samples[i, 1], samples[i, 2], samples[i, 3], samples[i, 4], work, bufs)

@@ -41,6 +41,7 @@ _FIELDS = [
     ("GATE_N", 1),
     ("OUTLIERS", 4),  # samples the gate replaced, per sensor x1, x3, x4, x5
     ("CLAMPED", 1),  # samples whose x1 would have emptied a chamber (volume clamped, see identify)
+    ("OBS_IN", N_OBS * (SG_HALF + 1)),  # its filters' inputs of the last SG_HALF + 1 samples (newest first)
     ("SVF_O", N_OBS * OBS_STATE),  # the force balance with observed pressures (monitor.force_observer)
     ("NE_A", 45), ("NE_B", 9), ("NE_YY", 1),  # its normal equations (A's upper triangle, packed by rows)
     ("TH_O", 9),  # the reference estimate its residual statistics are taken against
@@ -88,6 +89,7 @@ O_GATE_N = OFFSETS["GATE_N"][0]
 O_OUTLIERS = OFFSETS["OUTLIERS"][0]
 O_CLAMPED = OFFSETS["CLAMPED"][0]
 O_SVF_O = OFFSETS["SVF_O"][0]
+O_OBS_IN = OFFSETS["OBS_IN"][0]
 O_NE_A = OFFSETS["NE_A"][0]
 O_NE_B = OFFSETS["NE_B"][0]
 O_NE_YY = OFFSETS["NE_YY"][0]

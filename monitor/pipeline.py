@@ -282,7 +282,7 @@ class Fleet:
             self._alloc_events(t * cap)
         if self._pool is None:
             self._pool = ThreadPoolExecutor(t - 1, thread_name_prefix="fleet")
-        order, start = partition_rigs(rig, t)
+        order, start = partition_rigs(rig, t, len(self.ids))
         args = self._args + (rig, samples) + self._ev
 
         def part(k):

@@ -35,18 +35,19 @@ def _finite_row(phi: np.ndarray, y: float) -> bool:
 
 
 @njit(cache=True, error_model="numpy")
-def _forget(P: np.ndarray, lam: float, p_max: float) -> None:
-    n = P.shape[0]
+def _forget(P: np.ndarray, n: int, lam: float, p_max: float) -> None:
     tr = 0.0
     for i in range(n):
-        tr += P[i, i]
+        tr += P[i * n + i]
     if lam < 1.0 and tr * (1.0 / lam) <= p_max:
         inv = 1.0 / lam
-        for i in range(n):
-            for j in range(n):
-                P[i, j] *= inv
+        for i in range(n * n):
+            P[i] *= inv
 
 
+# P is passed flat, P[i * n + j] (a slice of a rig's state row as it lies): reshaping the slice
+# to (n, n) on every row called numba's reshape helper, ~100 instructions a call, 5-6 calls a
+# sample on the hot path.
 @njit(cache=True, error_model="numpy")
 def rls_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float,
                w: np.ndarray) -> float:
@@ -55,8 +56,8 @@ def rls_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam:
     Parameters
     ----------
     theta : array (n,)
-    P : array (n, n)
-        Covariance (scaled by the noise variance it is the parameter covariance).
+    P : array (n * n,)
+        Covariance, flat by rows (scaled by the noise variance it is the parameter covariance).
     phi : array (n,)
         Regressor row.
     y : float
@@ -76,7 +77,7 @@ def rls_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam:
     for i in range(n):
         acc = 0.0
         for j in range(n):
-            acc += P[i, j] * phi[j]
+            acc += P[i * n + j] * phi[j]
         w[i] = acc
         denom += phi[i] * acc
         e -= phi[i] * theta[i]
@@ -84,26 +85,27 @@ def rls_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam:
         k = w[i] / denom
         theta[i] += k * e
         for j in range(n):
-            P[i, j] -= k * w[j]
+            P[i * n + j] -= k * w[j]
     for i in range(n):
         for j in range(i + 1, n):
-            s = 0.5 * (P[i, j] + P[j, i])
-            P[i, j] = s
-            P[j, i] = s
-    _forget(P, lam, p_max)
+            s = 0.5 * (P[i * n + j] + P[j * n + i])
+            P[i * n + j] = s
+            P[j * n + i] = s
+    _forget(P, n, lam, p_max)
     return e
 
 
 @njit(cache=True, error_model="numpy")
 def rls_step(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float) -> float:
-    """``rls_update`` with its own scratch space (for callers off the hot path)."""
-    return rls_update(theta, P, phi, y, lam, p_max, np.empty(theta.shape[0]))
+    """``rls_update`` with P as an (n, n) matrix and its own scratch space (callers off the hot path)."""
+    return rls_update(theta, P.reshape(P.size), phi, y, lam, p_max, np.empty(theta.shape[0]))
 
 
 @njit(cache=True, error_model="numpy")
 def riv_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray, y: float, lam: float,
                p_max: float, w: np.ndarray) -> float:
-    """One recursive-IV update with instrument z (in place); scratch w (>= 2 n). Returns the residual."""
+    """One recursive-IV update with instrument z (in place), P flat (n * n,) by rows; scratch w
+    (>= 2 n). Returns the residual."""
     if not (_finite_row(phi, y) and _finite_row(z, 0.0)):
         return np.nan
     n = theta.shape[0]
@@ -113,8 +115,8 @@ def riv_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray,
         a = 0.0
         b = 0.0
         for j in range(n):
-            a += P[i, j] * z[j]
-            b += phi[j] * P[j, i]
+            a += P[i * n + j] * z[j]
+            b += phi[j] * P[j * n + i]
         w[i] = a  # P z
         w[n + i] = b  # phi' P
         e -= phi[i] * theta[i]
@@ -126,8 +128,8 @@ def riv_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, z: np.ndarray,
         k = w[i] / denom
         theta[i] += k * e
         for j in range(n):
-            P[i, j] -= k * w[n + j]
-    _forget(P, lam, p_max)
+            P[i * n + j] -= k * w[n + j]
+    _forget(P, n, lam, p_max)
     return e
 
 
