@@ -11,7 +11,8 @@ Two layers:
   (zenoh forbids blocking or calling its API inside callbacks), a loop that drains
   everything queued into one batch (``try_recv`` until empty; the 1.x handlers have no
   ``recv`` with a timeout, so an empty channel waits ``poll_s`` on the stop event), health
-  published with ``session.put``, a liveliness token ``<ns>/monitor/<node>`` and a
+  published with ``session.put``, each rig's sample and health keys declared on the session
+  so zenoh routes them from a cache (:class:`RigKeys`), a liveliness token ``<ns>/monitor/<node>`` and a
   queryable on ``<ns>/rig/*/health`` that answers with each rig's latest health.
 
 The core (:class:`hydromon.monitorcore.MonitorCore`) and the edge validation
