@@ -174,6 +174,7 @@ class PlantFleet:
         self.rngs = [np.random.default_rng(s) for s in self.seeds]
         self.k = 0  # index of the next sample
         self._groups = None  # rigs grouped by equal profile, built on first step
+        self._noise_ids: list[int] | None = None  # the noise models _noise_rows was built for
         self.config_rev = np.zeros(n, dtype=np.int64)  # bumped when a rig's config changes
 
     @property
@@ -205,6 +206,16 @@ class PlantFleet:
             self._groups = [(pr, np.array(idx)) for pr, idx in groups.values()]
         return self._groups
 
+    def _noise_rows(self) -> tuple[np.ndarray, list[int]]:
+        """(rows whose noise model is zero, rows with noise), rebuilt when ``self.noise`` changes
+        (its models are frozen, so the same objects have the same ``is_zero``)."""
+        ids = list(map(id, self.noise))
+        if ids != self._noise_ids:
+            zero = np.array([m.is_zero for m in self.noise], dtype=np.bool_)
+            self._zero_rows, self._noisy_rows = np.flatnonzero(zero), np.flatnonzero(~zero).tolist()
+            self._noise_ids = ids
+        return self._zero_rows, self._noisy_rows
+
     def step(self, k: int) -> Block:
         """The next ``k`` samples of every rig (and advance the fleet past them)."""
         k = int(k)
@@ -222,7 +233,12 @@ class PlantFleet:
         states = np.empty((n, k, 6))
         step_fleet(self.x, self.vec, ug_sub, h, k0, self.loop_delay, self.meas_delay, self.hist,
                    self.x1_0, clean, states)
-        for r in range(n):
+        # rigs without noise at once: add_noise would return their clean rows and draw nothing
+        # (one call per rig per block was about half of this method's time at 800 rigs)
+        zero, noisy = self._noise_rows()
+        if len(zero):
+            samples[zero, :, 1:] = clean[zero]
+        for r in noisy:
             samples[r, :, 1:] = add_noise(clean[r], self.noise[r], self.rngs[r])
         self.k = k0 + k
         return Block(seq=seq, t=t, samples=samples, states=states)

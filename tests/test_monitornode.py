@@ -917,3 +917,65 @@ def test_split_rig_key_says_why_a_key_is_not_a_rig_key(key, want):
     got = split_rig_key(key)
     assert got == want if isinstance(want, tuple) else got.startswith(want)
     assert parse_rig_key(key) == (want if isinstance(want, tuple) else None)
+
+
+class _KeySession:
+    """What RigKeys uses of a session: declare_keyexpr and undeclare, recorded."""
+
+    def __init__(self):
+        self.declared, self.undeclared = [], []
+
+    def declare_keyexpr(self, key):
+        self.declared.append(key)
+        return ("ke", key)
+
+    def undeclare(self, ke):
+        self.undeclared.append(ke[1])
+
+
+def _core_with(rig_ids):
+    core = MonitorCore(NS)
+    for i, rig in enumerate(rig_ids):
+        core.process([(f"{NS}/rig/{rig}/sample", sample_bytes(0, 0.0, [2.0, 0.0, 6e6, 6e6, 0.0]))])
+    return core
+
+
+def test_rig_keys_declares_each_rigs_sample_and_health_key_once_and_undeclares_them():
+    from hydromon.monitornode import RigKeys
+
+    session, core = _KeySession(), _core_with(["a", "b"])
+    keys = RigKeys(session, NS)
+    keys.sync(core)
+    keys.sync(core)
+    assert sorted(session.declared) == sorted(f"{NS}/rig/{r}/{leaf}" for r in "ab" for leaf in ("sample", "health"))
+    assert keys.health[health_key("a", NS)] == ("ke", health_key("a", NS))
+    core.process([(f"{NS}/rig/c/sample", sample_bytes(0, 0.0, [2.0, 0.0, 6e6, 6e6, 0.0]))])
+    keys.sync(core)
+    assert len(session.declared) == 6 and session.declared[-2:] == [f"{NS}/rig/c/sample", f"{NS}/rig/c/health"]
+    keys.forget(core.forget(["a"]))
+    assert sorted(session.undeclared) == [f"{NS}/rig/a/health", f"{NS}/rig/a/sample"]
+    assert health_key("a", NS) not in keys.health
+    keys.close()
+    assert sorted(session.undeclared) == sorted(session.declared) and not keys.health and not keys.off
+
+
+def test_rig_keys_gives_up_beyond_its_rig_limit_and_on_a_flood_of_rejects():
+    from hydromon.monitornode import RigKeys
+
+    session, core = _KeySession(), _core_with(["a", "b", "c"])
+    keys = RigKeys(session, NS, max_rigs=2)
+    keys.sync(core)
+    assert keys.off and session.declared == [] and keys.health == {}
+    session, core = _KeySession(), _core_with(["a"])
+    keys = RigKeys(session, NS, max_rejects=3)
+    keys.sync(core)
+    keys.check(core)
+    core.process([(f"{NS}/rig/bad.id/sample", b"{}")] * 3)
+    keys.check(core)
+    assert not keys.off  # 3 rejects since the last check: not more than max_rejects
+    core.process([(f"{NS}/rig/bad.id/sample", b"{}")] * 4)
+    keys.check(core)
+    assert keys.off and sorted(session.undeclared) == sorted(session.declared) and len(session.declared) == 2
+    core.process([(f"{NS}/rig/d/sample", sample_bytes(0, 0.0, [2.0, 0.0, 6e6, 6e6, 0.0]))])
+    keys.sync(core)
+    assert len(session.declared) == 2  # off for good
