@@ -363,3 +363,14 @@ def test_a_bus_replay_of_another_namespace_says_where_its_messages_go(recording,
     assert "recorded under namespace site1/lineA" in err and "--namespace site1/lineA" in err
     rc, err = _cli(["replay", str(recording), "--quiet", "--rate", "0", "--wait", "0"], capsys)
     assert rc == 0 and "recorded under namespace" not in err
+
+
+def test_a_replay_cut_short_exits_1_unless_looping():
+    # a review: `hydromon replay F` stopped by Ctrl-C after 3 s of 20 exited 0, so a script's
+    # `replay && evaluate` went on as if the whole record had been sent
+    from hydromon.commands.replay import exit_code
+    from hydromon.replay import ReplayStats
+
+    assert exit_code(ReplayStats(published=10, passes=1), loop=False) == 0
+    assert exit_code(ReplayStats(published=10, passes=0, stopped_at=3.0), loop=False) == 1
+    assert exit_code(ReplayStats(published=10, passes=2, stopped_at=3.0), loop=True) == 0

@@ -155,4 +155,14 @@ def run(args) -> int:
           f"{stopped} in {stats.wall:.2f} s; max lateness {stats.max_late * 1e3:.1f} ms", file=sys.stderr)
     if stats.published == 0 and not stop.is_set():
         raise NothingToReplay(f"{args.file}: no message in the window (--start, --duration, --keys): nothing sent")
-    return 0
+    code = exit_code(stats, args.loop)
+    if code:
+        print(f"hydromon replay: incomplete: the window was not sent to its end (exit {code})", file=sys.stderr)
+    return code
+
+
+def exit_code(stats, loop: bool) -> int:
+    """0 when the window went out whole; 1 when a stop (Ctrl-C/SIGTERM) cut a single pass short,
+    so that ``hydromon replay F && next-step`` does not go on as if the record had been sent.
+    With ``--loop`` a stop is the only way to end, so it is the normal end (0)."""
+    return 1 if stats.stopped_at is not None and not loop else 0
