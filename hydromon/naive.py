@@ -22,12 +22,12 @@ import numpy as np
 
 from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, OBS_REFRESH, PSI_NOM, REF_EVERY
 from monitor.ident_options import IdentOptions, Kernels
-from monitor.identify import V_MIN, THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
+from monitor.identify import REST_EXCITATION, V_MIN, THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
 from monitor.ident_options import STEP_GUARD
 from monitor.layout import (
     N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
     O_NE_YY, O_OBS_IC, O_OBS_IN, O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS_K, O_SINCE_STEP, O_SVF_K, O_TH_K, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
-    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
+    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_REST, O_EXC_C, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
     O_TH_V, O_XH, OBS_ORDER, OBS_STATE, RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
 from plant_sim.params import RigConfig
@@ -72,6 +72,7 @@ class NaiveIdentifier:
         self.o_mats = (k.m_o[:, :OBS_ORDER].copy(), k.m_o[:, OBS_ORDER:].copy())
         self.warm = math.ceil(o.warmup / c.h)
         self.guard = math.ceil(o.reversal_guard / c.h)
+        self.rest_pause = math.ceil(o.rest_pause / c.h)
         self.n = 0
         self.ring = np.zeros((RING, N_CH))
         self.noise = np.zeros(4)
@@ -84,6 +85,8 @@ class NaiveIdentifier:
         self.xh = np.zeros(2)
         self.rows = np.zeros(3)
         self.slow = 0.0
+        self.rest = 0.0
+        self.exc_c = 0.0
         self.bc = np.zeros(3)
         self.res_w = np.zeros(N_STREAMS)
         self.res_e2 = np.zeros(N_STREAMS)
@@ -279,7 +282,7 @@ class NaiveIdentifier:
         yc = np.empty((10, 3))
         for i in range(10):
             self.svf_c[i], yc[i] = self._svf(self.c_mats, self.svf_c[i], u_c[i])
-        if n < self.warm:
+        if n < self.warm or self._chambers_rest(yc):
             return
         lam2 = math.sqrt(o.lam)  # two rows per sample, each forgetting by sqrt(lam)
         s1 = THETA_NOM_C / Y_NOM_C
@@ -300,6 +303,16 @@ class NaiveIdentifier:
             self.bc[2] = lam2 * self.bc[2] + c.V20 ** 2
             self._residual(2, y - phi @ self.th_c, lam2)
 
+    def _chambers_rest(self, yc: np.ndarray) -> bool:
+        """The chamber rows pause: the piston still for rest_pause and the pressure rates'
+        running mean square within REST_EXCITATION of the sensor noise's (IdentOptions)."""
+        if self.rest_pause <= 0:
+            return False
+        d = math.exp(-self.h / self.options.rest_pause)
+        self.exc_c = d * self.exc_c + (1.0 - d) * (yc[0, 1] ** 2 + yc[1, 1] ** 2)
+        noise = self._kernels.g_c[1, 1] * (self.noise[1] + self.noise[2]) / 70.0
+        return self.rest >= self.rest_pause and self.exc_c <= REST_EXCITATION * noise
+
     def _force(self, n: int) -> None:
         """Force balance row (eq 24-27) at the instant SG_HALF back (centred velocity)."""
         c, o = self.config, self.options
@@ -310,7 +323,9 @@ class NaiveIdentifier:
         q1 = c.A1 * c3 - c.A2 * c4 - c.F_L
         sg = float(np.sign(v))
         v_noise = 3.0 * math.sqrt(self.noise[0] / 70.0 / ((j @ j) * self.h * self.h))
-        self.slow = 0.0 if abs(v) < max(o.v_stick, v_noise) else self.slow + 1.0
+        still = abs(v) < max(o.v_stick, v_noise)
+        self.slow = 0.0 if still else self.slow + 1.0
+        self.rest = self.rest + 1.0 if still else 0.0
         u_f = np.array([c1, q1, sg])
         if n == 2 * SG_HALF:
             self.svf_f = np.array([self._svf_init(self.f_mats, u) for u in u_f])
@@ -443,6 +458,8 @@ class NaiveIdentifier:
         st[O_NOISE:O_NOISE + 4] = self.noise
         st[O_NOISE_N] = self.noise_n
         st[O_SLOW] = self.slow
+        st[O_REST] = self.rest
+        st[O_EXC_C] = self.exc_c
         st[O_BC:O_BC + 3] = self.bc
         st[O_RES_W:O_RES_W + N_STREAMS] = self.res_w
         st[O_RES_E2:O_RES_E2 + N_STREAMS] = self.res_e2

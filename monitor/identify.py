@@ -67,6 +67,8 @@ from .layout import (
     H_OBS,
     H_PMAX,
     H_STEP_GUARD,
+    H_REST,
+    H_REST_DECAY,
     H_STEP_TOL,
     H_VSTICK,
     H_WARM,
@@ -98,6 +100,8 @@ from .layout import (
     O_ROWS_O,
     O_SINCE_STEP,
     O_SLOW,
+    O_REST,
+    O_EXC_C,
     O_SVF_C,
     O_SVF_F,
     O_SVF_K,
@@ -118,6 +122,10 @@ from .rls import riv_update, rls_update
 from .svf import svf_bank_init, svf_bank_step
 
 N_PARAMS = 12  # PARAM_NAMES: the paper's 11 and the valve's static gain K_sv
+
+# the chamber rows count as unexcited while the mean square of the filtered pressure rates is
+# under this many times what the sensors' noise alone gives (IdentOptions.rest_pause)
+REST_EXCITATION = 4.0
 
 
 
@@ -297,7 +305,7 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work, b
         svf_bank_init(st, O_SVF_C, u)
     yc = bufs[1]
     svf_bank_step(m_c, st, O_SVF_C, u, yc)
-    if n >= hyper[H_WARM]:
+    if n >= hyper[H_WARM] and not _chambers_rest(st, hyper, yc, g_c):
         _chamber_rows(st, rc, yc, phi, lam, pmax, w)
 
     if n < 2 * SG_HALF:
@@ -315,8 +323,10 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work, b
     v_noise = 3.0 * math.sqrt(st[O_NOISE] / 70.0 / (den * hyper[H_H] * hyper[H_H]))
     if abs(v) < max(hyper[H_VSTICK], v_noise):
         st[O_SLOW] = 0.0
+        st[O_REST] += 1.0
     else:
         st[O_SLOW] += 1.0
+        st[O_REST] = 0.0
     u = work[63:66]
     u[0], u[1], u[2] = c1, q1, sg
     if n == 2 * SG_HALF:
@@ -415,6 +425,19 @@ def _observer_rows(st, hyper, phi, yo, phi9, lam, w, g_f, g_c):
         _residual_stats(st, 4, e, lam)
     if st[O_ROWS_O] % OBS_REFRESH == 0.0:
         observer_refresh(st, hyper, g_f, g_c)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _chambers_rest(st, hyper, yc, g_c):
+    """Whether the chamber rows pause (IdentOptions.rest_pause): the piston still for H_REST
+    samples (O_REST, the force part's count, a sample old here, as the naive twin has it) and
+    the pressure rates' running mean square within REST_EXCITATION of the sensor noise's."""
+    if hyper[H_REST] <= 0.0:
+        return False
+    d = hyper[H_REST_DECAY]
+    st[O_EXC_C] = d * st[O_EXC_C] + (1.0 - d) * (yc[0, 1] * yc[0, 1] + yc[1, 1] * yc[1, 1])
+    noise = g_c[1, 1] * (st[O_NOISE + 1] + st[O_NOISE + 2]) / 70.0  # 4th differences: 70 s^2
+    return st[O_REST] >= hyper[H_REST] and st[O_EXC_C] <= REST_EXCITATION * noise
 
 
 @njit(cache=True, error_model="numpy", inline="always")
