@@ -27,7 +27,7 @@ from monitor.ident_options import STEP_GUARD
 from monitor.layout import (
     N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
     O_NE_YY, O_OBS_IC, O_OBS_IN, O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS_K, O_SINCE_STEP, O_SVF_K, O_TH_K, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
-    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_REST, O_EXC_C, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
+    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_REST, O_EXC_C, O_OBS_STEP, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
     O_TH_V, O_XH, OBS_ORDER, OBS_STATE, RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
 from plant_sim.params import RigConfig
@@ -113,6 +113,7 @@ class NaiveIdentifier:
         self.th_k, self.P_k = np.zeros(3), np.eye(3) * o.p0
         self.rows_k = 0.0
         self.since_step = 0.0
+        self.obs_step = 0.0
 
     # -- pieces -----------------------------------------------------------------------------
 
@@ -344,7 +345,7 @@ class NaiveIdentifier:
             self.rows[0] += 1.0
             self.bc[0] = o.lam * self.bc[0] + 1.0
             self._residual(0, y - phi @ self.th_f, o.lam)
-        if yo is not None:
+        if yo is not None and self.obs_step >= math.ceil(o.observer_step_guard / self.h):
             self._observer_row(phi, yo)
 
     def _static_gain(self, n: int, x1: float) -> None:
@@ -355,11 +356,13 @@ class NaiveIdentifier:
         if n == 2 * SG_HALF:
             self.svf_k = np.array([self._svf_init(self.f_mats, v) for v in u])
             self.since_step = 0.0
+            self.obs_step = float(math.ceil(o.observer_step_guard / self.h))
         yk = np.empty((2, 3))
         for i in range(2):
             self.svf_k[i], yk[i] = self._svf(self.f_mats, self.svf_k[i], u[i])
         d2 = self._at(SG_HALF - 1, 0) - 2.0 * self._at(SG_HALF, 0) + self._at(SG_HALF + 1, 0)
         self.since_step = 0.0 if abs(d2) > o.step_tol else self.since_step + 1.0
+        self.obs_step = 0.0 if abs(d2) > o.step_tol else self.obs_step + 1.0
         if n - 2 * SG_HALF < self.warm or self.since_step < math.ceil(STEP_GUARD / self.h):
             return
         phi = np.array([yk[1, 0], -yk[0, 1], -yk[0, 2]]) * THETA_NOM_K / X5_NOM
@@ -485,6 +488,7 @@ class NaiveIdentifier:
         st[O_TH_K:O_TH_K + 3], st[O_P_K:O_P_K + 9] = self.th_k, self.P_k.ravel()
         st[O_ROWS_K] = self.rows_k
         st[O_SINCE_STEP] = self.since_step
+        st[O_OBS_STEP] = self.obs_step
         return st
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:

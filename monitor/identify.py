@@ -69,6 +69,7 @@ from .layout import (
     H_STEP_GUARD,
     H_REST,
     H_REST_DECAY,
+    H_OBS_STEP,
     H_STEP_TOL,
     H_VSTICK,
     H_WARM,
@@ -102,6 +103,7 @@ from .layout import (
     O_SLOW,
     O_REST,
     O_EXC_C,
+    O_OBS_STEP,
     O_SVF_C,
     O_SVF_F,
     O_SVF_K,
@@ -340,12 +342,15 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work, b
     if n == 2 * SG_HALF:
         svf_bank_init(st, O_SVF_K, uk)
         st[O_SINCE_STEP] = 0.0
+        st[O_OBS_STEP] = hyper[H_OBS_STEP]
     yk = bufs[3]
     svf_bank_step(m_f, st, O_SVF_K, uk, yk)
     if abs(_ring(st, SG_HALF - 1, 0) - 2.0 * _ring(st, SG_HALF, 0) + _ring(st, SG_HALF + 1, 0)) > hyper[H_STEP_TOL]:
         st[O_SINCE_STEP] = 0.0
+        st[O_OBS_STEP] = 0.0
     else:
         st[O_SINCE_STEP] += 1.0
+        st[O_OBS_STEP] += 1.0
     if n - 2 * SG_HALF >= hyper[H_WARM] and st[O_SINCE_STEP] >= hyper[H_STEP_GUARD]:
         _static_gain_rows(st, yk, work[156:159], lam, pmax, w)
     obs = hyper[H_OBS] > 0.0
@@ -415,7 +420,7 @@ def _observer_rows(st, hyper, phi, yo, phi9, lam, w, g_f, g_c):
     """The force balance with observed pressures (monitor.force_observer), on the rows the plain
     force balance takes: phi holds that row's four scaled regressors. Every OBS_REFRESH rows its
     solution is refreshed into the state (monitor.estimates.observer_refresh)."""
-    if st[O_SLOW] < hyper[H_GUARD]:
+    if st[O_SLOW] < hyper[H_GUARD] or st[O_OBS_STEP] < hyper[H_OBS_STEP]:
         return
     for i in range(4):
         phi9[i] = phi[i]

@@ -54,6 +54,7 @@ _FIELDS = [
     ("ROWS_K", 1),
     ("SINCE_STEP", 1),  # samples since a step in ug at the static-gain rows' instant
     ("REST", 1),  # samples in a row with the piston near rest (the chamber rows pause after H_REST)
+    ("OBS_STEP", 1),  # samples since a step in ug for the observer rows (the start is not a step)
     ("EXC_C", 1),  # running mean square of the filtered pressure rates sF x3, sF x4 [Pa^2/s^2]
 ]
 
@@ -107,6 +108,7 @@ O_ROWS_K = OFFSETS["ROWS_K"][0]
 O_SINCE_STEP = OFFSETS["SINCE_STEP"][0]
 O_REST = OFFSETS["REST"][0]
 O_EXC_C = OFFSETS["EXC_C"][0]
+O_OBS_STEP = OFFSETS["OBS_STEP"][0]
 
 # Per-rig constants row (SI): the rig config the equations need.
 (C_A1, C_A2, C_V10, C_V20, C_PS, C_FL, C_KP, C_KF) = range(8)
@@ -114,5 +116,5 @@ RIG_CONST_SIZE = C_KF + 1
 
 # Hyperparameter row shared by a fleet (see ident_options.IdentOptions).
 (H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD,
- H_GATE2, H_OBS, H_WC, H_WC_DECAY, H_STEP_GUARD, H_REST, H_REST_DECAY) = range(19)
-HYPER_SIZE = H_REST_DECAY + 1
+ H_GATE2, H_OBS, H_WC, H_WC_DECAY, H_STEP_GUARD, H_REST, H_REST_DECAY, H_OBS_STEP) = range(20)
+HYPER_SIZE = H_OBS_STEP + 1

@@ -164,3 +164,23 @@ def test_b_fv_survives_a_gap():
     assert np.sum(z <= 3) >= 9, z
     clean, _ = _b_fv("none", [0], gap=True)
     assert abs(clean[0]) < 2e-4, clean
+
+
+def test_observer_rows_wait_after_a_step_in_the_command():
+    # found in session 11: on `--profile steps` (healthy rig, realistic noise, 20 s) the force
+    # balance on observed pressures took its rows right after each step in ug and put B + f_v
+    # 9.1 % high at 6.7 SE on seed 3; picked for its smaller SE it graded the rig `fault`
+    from monitor.ident_options import IdentOptions
+    from monitor.pipeline import Pipeline
+    from plant_sim.noise import noise_model
+    from plant_sim.profiles import parse_profile
+    from plant_sim.simulate import simulate
+
+    run = simulate(parse_profile("steps"), 20.0, noise=noise_model("realistic"), seed=3)
+    true = 6025.0
+    guarded = Pipeline().run(run.samples)[1]
+    assert abs(guarded.params["B_fv"] - true) <= 3 * guarded.std_errors["B_fv"]
+    assert guarded.grade == "health"
+    unguarded = Pipeline(options=IdentOptions(observer_step_guard=0.0)).run(run.samples)[1]
+    assert (unguarded.params["B_fv"] - true) / unguarded.std_errors["B_fv"] > 5  # the failure, kept measurable
+    assert unguarded.grade == "fault"
