@@ -163,7 +163,9 @@ class MonitorCore:
         ``monitor.pipeline.Fleet`` hyperparameters (options, ranges, grade_z, grade_margin).
     """
 
-    def __init__(self, namespace: str = DEFAULT_NAMESPACE, *, sample_rate: float = 100.0,
+    SAMPLE_RATE = 100.0  # [Hz] the default: the bus contract's rigs sample at 100 Hz
+
+    def __init__(self, namespace: str = DEFAULT_NAMESPACE, *, sample_rate: float = SAMPLE_RATE,
                  eval_every: int = 10, stale_samples: int | None = None, stagger: bool = True,
                  max_rigs: int = 10000, on_reject: Callable[[str, str, str], None] | None = None,
                  on_warning: Callable[[str, str], None] | None = None, **fleet_kw):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
+from hydromon.commands._memory import add_memory_argument, check_memory, options_from_args
 from hydromon.commands._ranges import add_ranges_argument, ranges_from_args
 from hydromon.commands._rigconfig import (
     add_config_argument, config_from_args, constants_line, has_recorded_config,
@@ -22,6 +23,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--rig", metavar="ID", help="which rig of a multi-rig MCAP recording")
     add_config_argument(parser)
     add_ranges_argument(parser)
+    add_memory_argument(parser)
     parser.add_argument("--refine", action="store_true",
                         help="also fit the force and chamber parameters to the whole record by prediction error "
                              "(monitor/refine.py: B + f_v at realistic sensor noise ~0.8 %% instead of ~4 %%; "
@@ -43,6 +45,7 @@ def run(args) -> int:
 
         writable_dir("--plots", args.plots)
     ranges = ranges_from_args(args)
+    check_memory(args)
     config = config_from_args(args)
     rec = load_recording(args.file, rig=args.rig, config=config)
     skipped = f" ({rec.skipped} before its last config change skipped)" if rec.skipped else ""
@@ -53,7 +56,8 @@ def run(args) -> int:
     if args.refine:
         print(f"hydromon evaluate: refining over {len(rec.samples) / rec.config.sample_rate:g} s of data "
               f"(about {0.1 * len(rec.samples) / rec.config.sample_rate:.0f} s)", file=sys.stderr)
-    result = evaluate(rec, ranges=ranges, refined=args.refine)
+    result = evaluate(rec, ranges=ranges, options=options_from_args(args, rec.config.sample_rate),
+                      refined=args.refine)
     if args.json:  # the evaluation first: a plotting error must not lose it
         print(json.dumps(to_json(result)), flush=True)
     else:

@@ -6,6 +6,7 @@ import sys
 import threading
 
 from hydromon.bus import add_bus_arguments, session_from_args
+from hydromon.commands._memory import add_memory_argument, options_from_args
 from hydromon.commands._ranges import add_ranges_argument, ranges_from_args
 from hydromon.commands._stop import stop_on_signals
 
@@ -35,6 +36,7 @@ def add_arguments(parser) -> None:
                              "health are dropped and its place goes to new rigs, so rig ids that come and go "
                              "never fill --max-rigs; if it comes back it starts afresh (default: never)")
     add_ranges_argument(parser)
+    add_memory_argument(parser)
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads for the estimators when many samples arrive at once (rigs split "
                              "between them; same numbers for any N; default 1)")
@@ -63,8 +65,10 @@ def run(args) -> int:
     except ValueError as exc:
         raise ValueError(f"--rigs: {exc}") from None
     ranges = ranges_from_args(args)  # a bad file fails here, before the bus
+    options = options_from_args(args, MonitorCore.SAMPLE_RATE)
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
-                       on_warning=log_rig_warning, threads=args.threads, ranges=ranges, max_rigs=args.max_rigs)
+                       on_warning=log_rig_warning, threads=args.threads, ranges=ranges, max_rigs=args.max_rigs,
+                       options=options)
     stop = threading.Event()
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.commands._stop
     try:

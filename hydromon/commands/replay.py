@@ -6,6 +6,7 @@ import sys
 import threading
 
 from hydromon.bus import add_bus_arguments, session_from_args
+from hydromon.commands._memory import MEMORY_HELP, add_memory_argument, check_memory, options_from_args
 from hydromon.commands._ranges import RANGES_HELP, add_ranges_argument, ranges_from_args
 from hydromon.commands._stop import stop_on_signals
 
@@ -46,6 +47,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", metavar="FILE", help="with --direct: write the health JSON lines here")
     add_ranges_argument(parser, f"with --direct: {RANGES_HELP}; give the live monitor's to get its health "
                                 "byte for byte")
+    add_memory_argument(parser, f"with --direct: {MEMORY_HELP}; give the live monitor's to get its health byte "
+                                "for byte")
     add_bus_arguments(parser)
 
 
@@ -73,6 +76,9 @@ def check_args(args) -> None:
             raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
         if args.ranges is not None:
             raise ValueError("--ranges goes with --direct (a bus replay publishes samples; the monitor grades them)")
+        if args.memory is not None:
+            raise ValueError("--memory goes with --direct (a bus replay publishes samples; the monitor grades them)")
+    check_memory(args)
 
 
 def _direct(args) -> int:
@@ -81,7 +87,8 @@ def _direct(args) -> int:
     from hydromon.replay import NothingToReplay, check_window, health_jsonl, nothing_graded, replay_direct
 
     check_window(args.file, keys=args.keys, start=args.start, namespace=args.namespace)
-    core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges_from_args(args))
+    core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges_from_args(args),
+                       options=options_from_args(args, MonitorCore.SAMPLE_RATE))
     health, core = replay_direct(args.file, keys=args.keys, start=args.start, duration=args.duration,
                                  namespace=args.namespace, core=core)
     why = nothing_graded(args.file, health, core.counters)

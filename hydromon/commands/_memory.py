@@ -1,0 +1,36 @@
+"""The ``--memory`` option that monitor, evaluate and replay --direct share (one text, one parse)."""
+
+from __future__ import annotations
+
+import math
+
+MIN_MEMORY_S = 10.0  # [s] the estimators need a few seconds of rows (min_rows 300 at 100 Hz) inside it
+
+MEMORY_HELP = ("the estimators' memory in seconds: older data fades (forgetting factor exp(-1/(S x rate))), so a "
+               "rig that degrades while watched is followed within about S (a valve losing half its gain: "
+               "graded deterioration 141 s after with --memory 120, 77 s with 60); default: none, a growing "
+               "window, right for a record or a short run but blind to a change late in a long one; at least "
+               f"{MIN_MEMORY_S:g}")
+
+
+def add_memory_argument(parser, help: str = MEMORY_HELP) -> None:
+    parser.add_argument("--memory", type=float, default=None, metavar="S", help=help)
+
+
+def check_memory(args) -> None:
+    """A ``--memory`` under MIN_MEMORY_S (or not finite) is a ValueError naming it."""
+    m = args.memory
+    if m is not None and not (math.isfinite(m) and m >= MIN_MEMORY_S):
+        raise ValueError(f"--memory {m!r} s: at least {MIN_MEMORY_S:g} s (the estimators need a few seconds of "
+                         "rows inside their memory)")
+
+
+def options_from_args(args, sample_rate: float):
+    """``monitor.ident_options.IdentOptions`` with the forgetting factor of ``--memory`` at
+    ``sample_rate`` [Hz] (None when not given: the defaults, no forgetting)."""
+    check_memory(args)
+    if args.memory is None:
+        return None
+    from monitor.ident_options import IdentOptions
+
+    return IdentOptions(lam=math.exp(-1.0 / (args.memory * sample_rate)))
