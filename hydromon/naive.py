@@ -27,7 +27,7 @@ from monitor.ident_options import STEP_GUARD
 from monitor.layout import (
     N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
     O_NE_YY, O_OBS_IC, O_OBS_IN, O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS_K, O_SINCE_STEP, O_SVF_K, O_TH_K, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
-    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_REST, O_EXC_C, O_OBS_STEP, O_ROWS_O, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
+    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_REST, O_EXC_C, O_OBS_STEP, O_ROWS_O, O_OBS_SGN, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
     O_TH_V, O_XH, OBS_ORDER, OBS_STATE, RING, SG_HALF, STATE_SIZE, SVF_STATE,
 )
 from plant_sim.params import RigConfig
@@ -79,7 +79,7 @@ class NaiveIdentifier:
         self.noise_n = 0.0
         self.svf_f = np.zeros((3, SVF_STATE))  # per signal: [x (3), u(k-1), u(k), u(k+1)]
         self.svf_c = np.zeros((10, SVF_STATE))
-        self.th_f, self.P_f = np.zeros(4), np.eye(4) * o.p0
+        self.th_f, self.P_f = np.zeros(5), np.eye(5) * o.p0  # m, B + f_v, f_c, K_t, F_0
         self.th_c, self.P_c = np.zeros(4), np.eye(4) * o.p0
         self.th_v, self.P_v = np.zeros(5), np.eye(5) * o.p0
         self.xh = np.zeros(2)
@@ -105,6 +105,7 @@ class NaiveIdentifier:
         self.ne_yy = 0.0
         self.th_o = np.zeros(N_OBS_PARAMS)
         self.rows_o = 0.0
+        self.obs_sgn = np.zeros(3)  # rows with F[sign(x2)] > 0, < 0, reference fits made
         self.obs_ic = 0.0
         self.obs_kl = 0.0
         self.obs_sol = np.zeros(4)  # the latest solution's B + f_v, f_c and variances (monitor.estimates)
@@ -338,7 +339,7 @@ class NaiveIdentifier:
         if n - 2 * SG_HALF < self.warm or self.slow < self.guard:
             return
         # skipped while a reversal is inside the filter's memory
-        phi = np.array([yf[0, 2], yf[0, 1], yf[2, 0], yf[0, 0]]) * THETA_NOM_F / Y_NOM_F
+        phi = np.array([yf[0, 2], yf[0, 1], yf[2, 0], yf[0, 0], 1.0]) * THETA_NOM_F / Y_NOM_F
         y = yf[1, 0] / Y_NOM_F
         self.th_f, self.P_f, e = self._rls(self.th_f, self.P_f, phi, y, o.lam)
         if math.isfinite(e):
@@ -413,8 +414,9 @@ class NaiveIdentifier:
     def _observer_row(self, phi: np.ndarray, yo: np.ndarray) -> None:
         """The force balance with observed pressures: one row into the normal equations."""
         o = self.options
-        ph = np.concatenate((phi, [-yo[2, 0] * PSI_NOM[0], -yo[3, 0] * PSI_NOM[1], -yo[4, 0] * PSI_NOM[2],
-                                   yo[1, 1] * PSI_NOM[3], self.obs_ic * IC_NOM] / np.float64(Y_NOM_F)))
+        psi = np.array([-yo[2, 0] * PSI_NOM[0], -yo[3, 0] * PSI_NOM[1], -yo[4, 0] * PSI_NOM[2],
+                        yo[1, 1] * PSI_NOM[3]]) / np.float64(Y_NOM_F)
+        ph = np.concatenate((phi[:4], psi, [phi[4], self.obs_ic * IC_NOM / np.float64(Y_NOM_F)]))
         y = o.observer_crossover * yo[0, 0] / Y_NOM_F
         if not (np.all(np.isfinite(ph)) and math.isfinite(y)):
             return
@@ -422,16 +424,22 @@ class NaiveIdentifier:
         self.ne_b = o.lam * self.ne_b + ph * y
         self.ne_yy = o.lam * self.ne_yy + y * y
         self.rows_o += 1.0
-        if self.rows_o % REF_EVERY == 0:
+        if ph[2] > 0.0:
+            self.obs_sgn[0] += 1.0
+        elif ph[2] < 0.0:
+            self.obs_sgn[1] += 1.0
+        if self.rows_o % REF_EVERY == 0 and min(self.obs_sgn[:2]) >= REF_EVERY:
             # reference: the free parameters with psi held at the chamber RLS's current estimate
             cp = self.th_c * THETA_NOM_C
             if cp[0] > 0.0:
                 psi = np.array([cp[1] / cp[0], cp[2] / cp[0], cp[3] / cp[0], 1.0 / cp[0]]) / PSI_NOM
+                fixed = np.append(psi, self.th_f[4])  # and F_0 at the plain force balance's
                 f = list(FREE)
-                rhs = self.ne_b[f] - self.ne_a[np.ix_(f, [4, 5, 6, 7])] @ psi
+                rhs = self.ne_b[f] - self.ne_a[np.ix_(f, [4, 5, 6, 7, 8])] @ fixed
                 self.th_o[f] = np.linalg.solve(self.ne_a[np.ix_(f, f)], rhs)
-                self.th_o[4:8] = psi
-        if self.rows_o > REF_EVERY:
+                self.th_o[4:9] = fixed
+                self.obs_sgn[2] += 1.0
+        if self.obs_sgn[2] >= 1:
             self._residual(4, y - ph @ self.th_o, o.lam)
         if self.rows_o % OBS_REFRESH == 0:
             # the solve with the chamber prior is read-out arithmetic: the shared one, on the packed state
@@ -453,7 +461,7 @@ class NaiveIdentifier:
         st[O_RING:O_RING + RING * N_CH] = self.ring[lags].ravel()
         st[O_SVF_F:O_SVF_F + 3 * SVF_STATE] = self.svf_f.ravel()
         st[O_SVF_C:O_SVF_C + 10 * SVF_STATE] = self.svf_c.ravel()
-        st[O_TH_F:O_TH_F + 4], st[O_P_F:O_P_F + 16] = self.th_f, self.P_f.ravel()
+        st[O_TH_F:O_TH_F + 5], st[O_P_F:O_P_F + 25] = self.th_f, self.P_f.ravel()
         st[O_TH_C:O_TH_C + 4], st[O_P_C:O_P_C + 16] = self.th_c, self.P_c.ravel()
         st[O_TH_V:O_TH_V + 5], st[O_P_V:O_P_V + 25] = self.th_v, self.P_v.ravel()
         st[O_XH:O_XH + 2] = self.xh
@@ -481,6 +489,7 @@ class NaiveIdentifier:
         st[O_NE_YY] = self.ne_yy
         st[O_TH_O:O_TH_O + N_OBS_PARAMS] = self.th_o
         st[O_ROWS_O] = self.rows_o
+        st[O_OBS_SGN:O_OBS_SGN + 3] = self.obs_sgn
         st[O_OBS_IC] = self.obs_ic
         st[O_OBS_KL] = self.obs_kl
         st[O_OBS_SOL:O_OBS_SOL + 4] = self.obs_sol

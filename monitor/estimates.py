@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .force_observer import N_OBS_PARAMS, PSI_NOM, REPORTED, chamber_prior, solve_with_prior
+from .force_observer import N_OBS_PARAMS, N_PRIOR, PSI_NOM, REPORTED, both_signs, chamber_prior, solve_with_prior
 from .layout import (
     H_BC, H_H, H_OBS, N_LAGS, O_BC, O_NOISE, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_W,
     O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS, O_ROWS_K, O_ROWS_O, O_TH_C, O_TH_K, O_TH_F, O_TH_V,
@@ -222,7 +222,7 @@ def _static_gain(st: np.ndarray) -> tuple[float, float]:
 def _force_noise(st, g_f, n):
     """(n, n) accumulated covariance of the x1 noise in the force rows' regressors (scaled units):
     white noise through the SVF reaches s^2F[x1], sF[x1] and F[x1] (m, B + f_v, K_t), not sign(x2);
-    with the observer's columns (n = 9) also sH[Lc] (psi4), Lc ~ KL x1. g_f is
+    with the observer's columns (n = N_OBS_PARAMS) also sH[Lc] (psi4), Lc ~ KL x1. g_f is
     ``monitor.force_observer.force_noise_gram``: [F, sF, s^2F, sH]."""
     # each regressor's filter output in g_f: m s^2F, B sF, K F, psi4 sH (f_c's sign and the rest: none)
     S = np.zeros((n, n))
@@ -275,6 +275,25 @@ def chamber_estimate(st: np.ndarray, hyper: np.ndarray, g_c: np.ndarray, th: np.
 
 
 @njit(cache=True, error_model="numpy")
+def plain_force(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray):
+    """The plain force balance's (m, B + f_v, f_c, K_t, F_0) and their covariance, scaled,
+    bias-compensated; fin False while the residual variance is not known (cov is then inf)."""
+    th = st[O_TH_F:O_TH_F + 5].copy()
+    P = st[O_P_F:O_P_F + 25].reshape((5, 5)).copy()
+    s2, kap = _sigma2_kappa(st, (0,), 5)
+    fin = math.isfinite(s2)
+    cov = P * (s2 * kap) if fin else P * np.inf
+    if hyper[H_BC] > 0.0:
+        S = _force_noise(st, g_f, 5)
+        if fin:
+            th, cov = _compensate(th, cov, P, S)
+        else:
+            th, cov = _compensate(th, P, P, S)
+            cov = cov * np.inf
+    return th, cov, fin
+
+
+@njit(cache=True, error_model="numpy")
 def observer_refresh(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarray) -> None:
     """Solve the force balance with observed pressures (monitor.force_observer) with the chamber
     estimate as the prior on psi, and keep its B + f_v and f_c and their variances in the state
@@ -286,18 +305,24 @@ def observer_refresh(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np
     """
     for q in range(4):
         st[O_OBS_SOL + q] = 0.0
-    if not (st[O_ROWS + 1] > 4 and st[O_ROWS_O] > N_OBS_PARAMS):
+    if not (st[O_ROWS + 1] > 4 and st[O_ROWS_O] > N_OBS_PARAMS and both_signs(st)):
         return
     cp = np.empty(4)
     ccov = np.empty((4, 4))
     if not chamber_estimate(st, hyper, g_c, cp, ccov):
         return
-    mu = np.empty(4)
-    c = np.empty((4, 4))
-    if not chamber_prior(cp, ccov, mu, c):
+    # the prior: psi from the chamber estimate, F_0 from the plain force balance's
+    mu = np.zeros(N_PRIOR)
+    c = np.zeros((N_PRIOR, N_PRIOR))
+    if not chamber_prior(cp, ccov, mu[:4], c[:4, :4]):
         return
+    thf, covf, fin = plain_force(st, hyper, g_f)
+    if not (fin and covf[4, 4] > 0.0):
+        return
+    mu[4] = thf[4]
+    c[4, 4] = covf[4, 4]
     _, kap = _sigma2_kappa(st, (4,), 4)
-    S = _force_noise(st, g_f, 9) if hyper[H_BC] > 0.0 else np.zeros((9, 9))
+    S = _force_noise(st, g_f, N_OBS_PARAMS) if hyper[H_BC] > 0.0 else np.zeros((N_OBS_PARAMS, N_OBS_PARAMS))
     th = np.empty(N_OBS_PARAMS)
     var = np.empty(4)
     if not solve_with_prior(st, S, st[O_BC], kap, mu, c, th, var):
@@ -333,19 +358,10 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
     bc = hyper[H_BC] > 0.0
     # force balance
     if st[O_ROWS] > 4:
-        th = st[O_TH_F:O_TH_F + 4].copy()
-        P = st[O_P_F:O_P_F + 16].reshape((4, 4)).copy()
-        s2, kap = _sigma2_kappa(st, (0,), 4)
-        cov = P * (s2 * kap) if math.isfinite(s2) else P * np.inf
-        if bc:
-            S = _force_noise(st, g_f, 4)
-            if math.isfinite(s2):
-                th, cov = _compensate(th, cov, P, S)
-            else:
-                th, cov = _compensate(th, P, P, S)
+        th, cov, fin = plain_force(st, hyper, g_f)
         for i in range(4):
             params[i] = th[i] * THETA_NOM_F[i]
-            se[i] = math.sqrt(max(cov[i, i], 0.0)) * THETA_NOM_F[i] if math.isfinite(s2) else np.inf
+            se[i] = math.sqrt(max(cov[i, i], 0.0)) * THETA_NOM_F[i] if fin else np.inf
     # chambers
     if st[O_ROWS + 1] > 4:
         th = np.empty(4)

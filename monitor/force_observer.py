@@ -54,7 +54,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .layout import N_OBS, O_NE_A, O_NE_B, O_NE_YY, O_ROWS_O, O_TH_O, OBS_ORDER, OBS_STATE
+from .layout import N_OBS, O_NE_A, O_NE_B, O_NE_YY, O_OBS_SGN, O_ROWS_O, O_TH_F, O_TH_O, OBS_ORDER, OBS_STATE
 from .smallmat import cholesky, cholesky_solve
 from .svf import cubic_hold_matrices, lowpass_companion
 
@@ -130,14 +130,14 @@ def obs_bank_step(m: np.ndarray, st: np.ndarray, base: int, u: np.ndarray, y: np
 
 @njit(cache=True, error_model="numpy", inline="always")
 def obs_row(yo: np.ndarray, wc: float, ic: float, y_nom: float, phi: np.ndarray) -> float:
-    """Write the observer columns phi[4:9] (scaled) from the filter outputs yo (5, 4) and the start
-    transient ic = e^(-w_c t) [-]; return the target w_c H[Fm] / y_nom. phi[0:4] are the plain
-    force balance's, set by the caller."""
+    """Write the observer columns phi[4:8] and phi[9] (scaled) from the filter outputs yo (5, 4)
+    and the start transient ic = e^(-w_c t) [-]; return the target w_c H[Fm] / y_nom. phi[0:4]
+    and phi[8] (F_0) are the plain force balance's, set by the caller."""
     phi[4] = -yo[2, 0] * PSI_NOM[0] / y_nom
     phi[5] = -yo[3, 0] * PSI_NOM[1] / y_nom
     phi[6] = -yo[4, 0] * PSI_NOM[2] / y_nom
     phi[7] = yo[1, 1] * PSI_NOM[3] / y_nom
-    phi[8] = ic * IC_NOM / y_nom
+    phi[9] = ic * IC_NOM / y_nom
     return wc * yo[0, 0] / y_nom
 
 
@@ -208,13 +208,24 @@ def _step_one(m, st, u, y):
     st[OBS_ORDER:] = [hist[1], hist[2], u[0]]
 
 
-N_OBS_PARAMS = 9  # m, B + f_v, f_c, K_t, psi1..psi4, the start transient's amplitude
-FREE = (0, 1, 2, 3, 8)  # the parameters without a prior (the force balance's and the transient's)
+N_OBS_PARAMS = 10  # m, B + f_v, f_c, K_t, psi1..psi4, F_0, the start transient's amplitude (last)
+FREE = (0, 1, 2, 3, 9)  # the parameters without a prior (the force balance's and the transient's)
+# with a prior: psi (4..7) from the chamber estimate, F_0 (8) from the plain force balance's (it
+# is that balance's constant too; fitted freely here it cost B + f_v 0.93 -> 1.00 % at realistic noise)
+N_PRIOR = 5
 # the entries the read-out reports (B + f_v, f_c; monitor.estimates says why not m and K_t)
 REPORTED = (1, 2)
 NOISY = (0, 1, 3, 7)  # the columns x1's noise reaches (m, B + f_v, K_t, psi4): S is zero elsewhere
 IC_NOM = 10.0  # nominal amplitude of the start transient [N]
 REF_EVERY = 16  # rows between updates of the reference estimate (TH_O) the residuals are taken against
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def both_signs(st: np.ndarray) -> bool:
+    """Whether the rows have seen the piston go both ways (REF_EVERY rows each): before that
+    f_c sign(x2) and the constant force F_0 are one column, and a fit of the two runs off
+    along it (the first reference put f_c at 515 N and 2,723 N in two exact implementations)."""
+    return st[O_OBS_SGN] >= REF_EVERY and st[O_OBS_SGN + 1] >= REF_EVERY
 OBS_REFRESH = 32  # rows between the solutions the per-sample kernel keeps (OBS_SOL; ~0.45 s at 100 Hz)
 
 
@@ -227,7 +238,7 @@ def ne_update(st: np.ndarray, phi: np.ndarray, y: float, lam: float, o_th_c: int
     The reference is the fit with psi held at the chamber RLS's current estimate (st[o_th_c:],
     scaled by th_c_nom), refit every REF_EVERY rows: the residuals' autocorrelation is what the
     read-out needs from them (the free fit would absorb the model's small errors by running off
-    along the nearly collinear directions). ``w`` is scratch (>= 34).
+    along the nearly collinear directions). ``w`` is scratch (>= 46).
     """
     n = N_OBS_PARAMS
     ok = math.isfinite(y)
@@ -245,9 +256,13 @@ def ne_update(st: np.ndarray, phi: np.ndarray, y: float, lam: float, o_th_c: int
     st[O_NE_YY] = lam * st[O_NE_YY] + y * y
     rows = int(st[O_ROWS_O]) + 1
     st[O_ROWS_O] = rows
-    if rows % REF_EVERY == 0:
-        _reference(st, o_th_c, th_c_nom, w)
-    if rows <= REF_EVERY:
+    if phi[2] > 0.0:
+        st[O_OBS_SGN] += 1.0
+    elif phi[2] < 0.0:
+        st[O_OBS_SGN + 1] += 1.0
+    if rows % REF_EVERY == 0 and both_signs(st) and _reference(st, o_th_c, th_c_nom, w):
+        st[O_OBS_SGN + 2] += 1.0
+    if st[O_OBS_SGN + 2] < 1.0:  # no reference yet
         return np.nan
     e = y
     for i in range(n):
@@ -273,20 +288,21 @@ def _reference(st, o_th_c, th_c_nom, w):
     its own, not inlined: it runs every REF_EVERY rows, and inlined it slowed every sample)."""
     ib = st[o_th_c] * th_c_nom[0]
     if not (ib > 0.0):
-        return
-    psi = w[0:4]
+        return False
+    psi = w[0:N_PRIOR]  # psi and F_0 (the plain force balance's, same scaling)
     for i in range(3):
         psi[i] = st[o_th_c + i + 1] * th_c_nom[i + 1] / ib / PSI_NOM[i]
     psi[3] = 1.0 / ib / PSI_NOM[3]
+    psi[4] = st[O_TH_F + 4]
     # A_ff theta_f = b_f - A_f,psi psi, by Gaussian elimination on the 5x6 augmented matrix
-    nf = 5
-    g = w[4:34].reshape((nf, nf + 1))
+    nf = len(FREE)
+    g = w[N_PRIOR:N_PRIOR + nf * (nf + 1)].reshape((nf, nf + 1))
     for a in range(nf):
         i = FREE[a]
         for b in range(nf):
             g[a, b] = _ne(st, i, FREE[b])
         r = st[O_NE_B + i]
-        for j in range(4):
+        for j in range(N_PRIOR):
             r -= _ne(st, i, 4 + j) * psi[j]
         g[a, nf] = r
     for c in range(nf):
@@ -295,7 +311,7 @@ def _reference(st, o_th_c, th_c_nom, w):
             if abs(g[r, c]) > abs(g[piv, c]):
                 piv = r
         if not (abs(g[piv, c]) > 0.0):
-            return
+            return False
         if piv != c:
             for j in range(nf + 1):
                 g[c, j], g[piv, j] = g[piv, j], g[c, j]
@@ -308,8 +324,9 @@ def _reference(st, o_th_c, th_c_nom, w):
         for b in range(a + 1, nf):
             acc -= g[a, b] * st[O_TH_O + FREE[b]]
         st[O_TH_O + FREE[a]] = acc / g[a, a]
-    for i in range(4):
+    for i in range(N_PRIOR):
         st[O_TH_O + 4 + i] = psi[i]
+    return True
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -334,7 +351,7 @@ def ne_new_transient(st: np.ndarray) -> None:
 def solve_with_prior(st: np.ndarray, S: np.ndarray, w: float, kappa: float, mu: np.ndarray, c: np.ndarray,
                      theta: np.ndarray, var: np.ndarray) -> bool:
     """The force balance with observed pressures from its normal equations and the prior
-    psi ~ N(mu, c) (scaled units): writes theta (9,) and the variances of the REPORTED entries
+    (psi, F_0) ~ N(mu, c) (scaled units, N_PRIOR entries): writes theta (N_OBS_PARAMS,) and the variances of the REPORTED entries
     (B + f_v, f_c) into var (4,) (the others NaN). False (nothing to report) if a system is singular.
 
     S (9, 9) is the regressor-noise covariance the bias compensation subtracts; w the rows'
@@ -350,7 +367,7 @@ def solve_with_prior(st: np.ndarray, S: np.ndarray, w: float, kappa: float, mu: 
     an evaluation, 500 ns a sample (measured).
     """
     n = N_OBS_PARAMS
-    nf = 5
+    nf = len(FREE)
     var[:] = np.nan
     A = np.empty((n, n))
     L = np.empty((n, n))
@@ -361,15 +378,15 @@ def solve_with_prior(st: np.ndarray, S: np.ndarray, w: float, kappa: float, mu: 
             A[i, j] = st[ne_index(i, j)]
             A[j, i] = A[i, j]
     # the prior's precision c^-1, column by column
-    lc = L[:4, :4]
+    lc = L[:N_PRIOR, :N_PRIOR]
     if not cholesky(c, lc):
         return False
-    lam_p = np.empty((4, 4))
-    for j in range(4):
-        for i in range(4):
+    lam_p = np.empty((N_PRIOR, N_PRIOR))
+    for j in range(N_PRIOR):
+        for i in range(N_PRIOR):
             x[i] = 1.0 if i == j else 0.0
-        cholesky_solve(lc, x[:4], x[:4])
-        for i in range(4):
+        cholesky_solve(lc, x[:N_PRIOR], x[:N_PRIOR])
+        for i in range(N_PRIOR):
             lam_p[i, j] = x[i]
     # the fit with psi at mu: (A - S)_ff theta_f = b_f - (A - S)_f,psi mu
     aff = np.empty((nf, nf))
@@ -378,7 +395,7 @@ def solve_with_prior(st: np.ndarray, S: np.ndarray, w: float, kappa: float, mu: 
         acc = st[O_NE_B + i]
         for q in range(nf):
             aff[a, q] = A[i, FREE[q]] - S[i, FREE[q]]
-        for j in range(4):
+        for j in range(N_PRIOR):
             acc -= (A[i, 4 + j] - S[i, 4 + j]) * mu[j]
         v[a] = acc
     lf = L[:nf, :nf]
@@ -387,7 +404,7 @@ def solve_with_prior(st: np.ndarray, S: np.ndarray, w: float, kappa: float, mu: 
     cholesky_solve(lf, v[:nf], v[:nf])
     for a in range(nf):
         x[FREE[a]] = v[a]
-    for j in range(4):
+    for j in range(N_PRIOR):
         x[4 + j] = mu[j]
     rss = st[O_NE_YY]
     for i in range(n):
@@ -402,9 +419,9 @@ def solve_with_prior(st: np.ndarray, S: np.ndarray, w: float, kappa: float, mu: 
         v[i] = st[O_NE_B + i] * inv_f
         for j in range(n):
             M[i, j] = (A[i, j] - S[i, j]) * inv_f
-    for i in range(4):
+    for i in range(N_PRIOR):
         acc = 0.0
-        for j in range(4):
+        for j in range(N_PRIOR):
             M[4 + i, 4 + j] += lam_p[i, j]
             acc += lam_p[i, j] * mu[j]
         v[4 + i] += acc

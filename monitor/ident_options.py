@@ -226,8 +226,9 @@ def reset_estimates(st: np.ndarray, hyper: np.ndarray) -> None:
     """Forget all estimates (theta = 0, P = p0 I) and statistics; keeps nothing."""
     st[:] = 0.0
     p0 = hyper[H_P0]
+    for i in range(5):
+        st[O_P_F + 6 * i] = p0
     for i in range(4):
-        st[O_P_F + 5 * i] = p0
         st[O_P_C + 5 * i] = p0
     for i in range(5):
         st[O_P_V + 6 * i] = p0

@@ -216,7 +216,7 @@ def _valve_row(st, rc, hyper, phi, z):
     return y, step
 
 
-WORK_SIZE = 160
+WORK_SIZE = 206
 
 
 @njit(cache=True, error_model="numpy")
@@ -370,9 +370,10 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work, b
         if not hold:
             st[O_OBS_IC] *= hyper[H_WC_DECAY]
     if n - 2 * SG_HALF >= hyper[H_WARM]:
-        _force_rows(st, hyper, yf, phi, lam, pmax, w)
+        pf = work[20:25]
+        _force_rows(st, hyper, yf, pf, lam, pmax, w)
         if obs:
-            _observer_rows(st, hyper, phi, yo, work[100:109], lam, work[114:148], g_f, g_c)
+            _observer_rows(st, hyper, pf, yo, work[100:110], lam, work[160:206], g_f, g_c)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -383,9 +384,10 @@ def _force_rows(st, hyper, yf, phi, lam, pmax, w):
     phi[1] = yf[0, 1] * THETA_NOM_F[1] / Y_NOM_F
     phi[2] = yf[2, 0] * THETA_NOM_F[2] / Y_NOM_F
     phi[3] = yf[0, 0] * THETA_NOM_F[3] / Y_NOM_F
+    phi[4] = THETA_NOM_F[4] / Y_NOM_F  # F_0: the filters pass a constant unchanged
     yv = yf[1, 0] / Y_NOM_F
-    th = st[O_TH_F:O_TH_F + 4]
-    P = st[O_P_F:O_P_F + 16]
+    th = st[O_TH_F:O_TH_F + 5]
+    P = st[O_P_F:O_P_F + 25]
     e = rls_update(th, P, phi, yv, lam, pmax, w) if force_ok else np.nan
     if math.isfinite(e):
         st[O_ROWS] += 1.0
@@ -424,6 +426,7 @@ def _observer_rows(st, hyper, phi, yo, phi9, lam, w, g_f, g_c):
         return
     for i in range(4):
         phi9[i] = phi[i]
+    phi9[8] = phi[4]
     yv = obs_row(yo, hyper[H_WC], st[O_OBS_IC], Y_NOM_F, phi9)
     e = ne_update(st, phi9, yv, lam, O_TH_C, THETA_NOM_C, w)
     if math.isfinite(e):

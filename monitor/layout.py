@@ -24,7 +24,7 @@ _FIELDS = [
     ("RING", RING * N_CH),
     ("SVF_F", N_FORCE_SVF * SVF_STATE),
     ("SVF_C", N_CH_SVF * SVF_STATE),
-    ("TH_F", 4), ("P_F", 16),
+    ("TH_F", 5), ("P_F", 25),  # m, B + f_v, f_c, K_t and the constant force F_0
     ("TH_C", 4), ("P_C", 16),
     ("TH_V", 5), ("P_V", 25),
     ("XH", 2),  # auxiliary model output x5_hat(k-1), x5_hat(k-2) [scaled]
@@ -43,12 +43,13 @@ _FIELDS = [
     ("CLAMPED", 1),  # samples whose x1 would have emptied a chamber (volume clamped, see identify)
     ("OBS_IN", N_OBS * (SG_HALF + 1)),  # its filters' inputs of the last SG_HALF + 1 samples (newest first)
     ("SVF_O", N_OBS * OBS_STATE),  # the force balance with observed pressures (monitor.force_observer)
-    ("NE_A", 45), ("NE_B", 9), ("NE_YY", 1),  # its normal equations (A's upper triangle, packed by rows)
-    ("TH_O", 9),  # the reference estimate its residual statistics are taken against
+    ("NE_A", 55), ("NE_B", 10), ("NE_YY", 1),  # its normal equations (A's upper triangle, packed by rows)
+    ("TH_O", 10),  # the reference estimate its residual statistics are taken against
     ("OBS_SOL", 4),  # its latest solution's B + f_v, f_c and their variances (scaled; 0: none)
     ("OBS_IC", 1),  # e^(-w_c t) since its filters started: the start transient's regressor
     ("OBS_KL", 1),  # d Lc / d x1 = A1^2 / V1 + A2^2 / V2 [m] where its filters started (x1 noise in Lc)
     ("ROWS_O", 1),
+    ("OBS_SGN", 3),  # its rows with F[sign(x2)] > 0, < 0, and the reference fits made (see force_observer)
     ("SVF_K", 2 * SVF_STATE),  # the valve's static gain: x5 and du through the force SVF (monitor.identify)
     ("TH_K", 3), ("P_K", 9),
     ("ROWS_K", 1),
@@ -97,6 +98,7 @@ O_NE_A = OFFSETS["NE_A"][0]
 O_NE_B = OFFSETS["NE_B"][0]
 O_NE_YY = OFFSETS["NE_YY"][0]
 O_TH_O = OFFSETS["TH_O"][0]
+O_OBS_SGN = OFFSETS["OBS_SGN"][0]
 O_OBS_SOL = OFFSETS["OBS_SOL"][0]
 O_OBS_IC = OFFSETS["OBS_IC"][0]
 O_OBS_KL = OFFSETS["OBS_KL"][0]

@@ -6,7 +6,8 @@ kernel can share them without importing each other.
 
 import numpy as np
 
-THETA_NOM_F = np.array([100.0, 1e4, 10.0, 1e6])  # m [kg], B+f_v [N s/m], f_c [N], K_t [N/m]
+# m [kg], B+f_v [N s/m], f_c [N], K_t [N/m], F_0 [N] (a constant force: sensor zeros, preload)
+THETA_NOM_F = np.array([100.0, 1e4, 10.0, 1e6, 1e3])
 Y_NOM_F = 1e4  # [N]
 THETA_NOM_C = np.array([1e-9, 1e-3, 1e-11, 1e-11])  # 1/beta [1/Pa], theta, C_ip, C_ep
 Y_NOM_C = 1e-3  # [m^3/s]

@@ -11,7 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from monitor.force_observer import (
+    FREE,
     N_OBS_PARAMS,
+    N_PRIOR,
     PSI_NOM,
     REPORTED,
     chamber_prior,
@@ -80,20 +82,21 @@ def test_solve_with_prior_equals_numpy(seed):
     S = np.zeros((n, n))
     cols = [0, 1, 3, 7]
     S[np.ix_(cols, cols)] = _random_spd(rng, 4, 0.5)
-    mu, c = rng.normal(size=4), _random_spd(rng, 4, 0.01)
+    mu, c = rng.normal(size=N_PRIOR), _random_spd(rng, N_PRIOR, 0.01)
     kappa, w = 3.0, 300.0
     th, var = np.empty(n), np.empty(4)
     assert solve_with_prior(stt, S, w, kappa, mu, c, th, var)
     # reference: the fit with psi at mu gives f; then the posterior and its sandwich covariance
-    free = [0, 1, 2, 3, 8]
-    tf = np.linalg.solve((A - S)[np.ix_(free, free)], b[free] - (A - S)[np.ix_(free, [4, 5, 6, 7])] @ mu)
+    free = list(FREE)
+    pri = list(range(4, 4 + N_PRIOR))
+    tf = np.linalg.solve((A - S)[np.ix_(free, free)], b[free] - (A - S)[np.ix_(free, pri)] @ mu)
     fix = np.zeros(n)
-    fix[free], fix[4:8] = tf, mu
-    f = (yy - 2 * fix @ b + fix @ A @ fix) / (w - 5) * kappa
+    fix[free], fix[pri] = tf, mu
+    f = (yy - 2 * fix @ b + fix @ A @ fix) / (w - len(free)) * kappa
     lam = np.zeros((n, n))
-    lam[4:8, 4:8] = np.linalg.inv(c)
+    lam[np.ix_(pri, pri)] = np.linalg.inv(c)
     M = (A - S) / f + lam
-    ref = np.linalg.solve(M, b / f + lam @ np.r_[np.zeros(4), mu, 0.0])
+    ref = np.linalg.solve(M, b / f + lam @ np.r_[np.zeros(4), mu, np.zeros(n - 4 - N_PRIOR)])
     cov = np.linalg.inv(M) @ (A / f + lam) @ np.linalg.inv(M)
     np.testing.assert_allclose(th, ref, rtol=1e-8, atol=1e-10 * np.abs(ref).max())
     for k in REPORTED:
@@ -103,7 +106,8 @@ def test_solve_with_prior_equals_numpy(seed):
 def test_solve_with_prior_refuses_a_singular_system():
     stt = np.zeros(STATE_SIZE)  # no rows: every system singular
     th, var = np.empty(N_OBS_PARAMS), np.empty(4)
-    assert not solve_with_prior(stt, np.zeros((9, 9)), 100.0, 1.0, np.ones(4), np.eye(4), th, var)
+    assert not solve_with_prior(stt, np.zeros((N_OBS_PARAMS, N_OBS_PARAMS)), 100.0, 1.0, np.ones(N_PRIOR),
+                                np.eye(N_PRIOR), th, var)
 
 
 def test_chamber_prior_is_the_delta_method():
@@ -169,18 +173,23 @@ def test_b_fv_survives_a_gap():
 def test_observer_rows_wait_after_a_step_in_the_command():
     # found in session 11: on `--profile steps` (healthy rig, realistic noise, 20 s) the force
     # balance on observed pressures took its rows right after each step in ug and put B + f_v
-    # 9.1 % high at 6.7 SE on seed 3; picked for its smaller SE it graded the rig `fault`
+    # 9.1 % high at 6.7 SE on seed 3; picked for its smaller SE it graded the rig `fault`. With
+    # the constant force F_0 in the force balances the unguarded rows are no longer that far off
+    # (max 2.7 SE over seeds 0-9), and the guard still halves the worst (1.2 SE)
     from monitor.ident_options import IdentOptions
     from monitor.pipeline import Pipeline
     from plant_sim.noise import noise_model
     from plant_sim.profiles import parse_profile
     from plant_sim.simulate import simulate
 
-    run = simulate(parse_profile("steps"), 20.0, noise=noise_model("realistic"), seed=3)
     true = 6025.0
-    guarded = Pipeline().run(run.samples)[1]
-    assert abs(guarded.params["B_fv"] - true) <= 3 * guarded.std_errors["B_fv"]
-    assert guarded.grade == "health"
-    unguarded = Pipeline(options=IdentOptions(observer_step_guard=0.0)).run(run.samples)[1]
-    assert (unguarded.params["B_fv"] - true) / unguarded.std_errors["B_fv"] > 5  # the failure, kept measurable
-    assert unguarded.grade == "fault"
+    z_guarded, z_unguarded = [], []
+    for seed in range(10):
+        run = simulate(parse_profile("steps"), 20.0, noise=noise_model("realistic"), seed=seed)
+        guarded = Pipeline().run(run.samples)[1]
+        assert guarded.grade == "health", seed
+        z_guarded.append(abs(guarded.params["B_fv"] - true) / guarded.std_errors["B_fv"])
+        unguarded = Pipeline(options=IdentOptions(observer_step_guard=0.0)).run(run.samples)[1]
+        z_unguarded.append(abs(unguarded.params["B_fv"] - true) / unguarded.std_errors["B_fv"])
+    assert max(z_guarded) <= 3.0, z_guarded
+    assert max(z_unguarded) > 1.5 * max(z_guarded), (z_guarded, z_unguarded)  # the guard matters
