@@ -209,7 +209,7 @@ def _step_one(m, st, u, y):
 
 
 N_OBS_PARAMS = 10  # m, B + f_v, f_c, K_t, psi1..psi4, F_0, the start transient's amplitude (last)
-FREE = (0, 1, 2, 3, 9)  # the parameters without a prior (the force balance's and the transient's)
+FREE = (0, 1, 2, 3, 9)  # the parameters without a prior (m, B + f_v, f_c, K_t and the transient's)
 # with a prior: psi (4..7) from the chamber estimate, F_0 (8) from the plain force balance's (it
 # is that balance's constant too; fitted freely here it cost B + f_v 0.93 -> 1.00 % at realistic noise)
 N_PRIOR = 5
@@ -218,15 +218,16 @@ REPORTED = (1, 2)
 NOISY = (0, 1, 3, 7)  # the columns x1's noise reaches (m, B + f_v, K_t, psi4): S is zero elsewhere
 IC_NOM = 10.0  # nominal amplitude of the start transient [N]
 REF_EVERY = 16  # rows between updates of the reference estimate (TH_O) the residuals are taken against
+OBS_REFRESH = 32  # rows between the solutions the per-sample kernel keeps (OBS_SOL; ~0.45 s at 100 Hz)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def both_signs(st: np.ndarray) -> bool:
     """Whether the rows have seen the piston go both ways (REF_EVERY rows each): before that
-    f_c sign(x2) and the constant force F_0 are one column, and a fit of the two runs off
-    along it (the first reference put f_c at 515 N and 2,723 N in two exact implementations)."""
+    f_c sign(x2) and the constant force F_0 are one column, so the plain balance's F_0, which the
+    reference fit and the solution take, is not yet determined (with F_0 fitted freely here the
+    first reference put f_c at 515 N and 2,723 N in two exact implementations)."""
     return st[O_OBS_SGN] >= REF_EVERY and st[O_OBS_SGN + 1] >= REF_EVERY
-OBS_REFRESH = 32  # rows between the solutions the per-sample kernel keeps (OBS_SOL; ~0.45 s at 100 Hz)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -238,7 +239,7 @@ def ne_update(st: np.ndarray, phi: np.ndarray, y: float, lam: float, o_th_c: int
     The reference is the fit with psi held at the chamber RLS's current estimate (st[o_th_c:],
     scaled by th_c_nom), refit every REF_EVERY rows: the residuals' autocorrelation is what the
     read-out needs from them (the free fit would absorb the model's small errors by running off
-    along the nearly collinear directions). ``w`` is scratch (>= 46).
+    along the nearly collinear directions). ``w`` is scratch (>= N_PRIOR + 30: the 5x6 elimination).
     """
     n = N_OBS_PARAMS
     ok = math.isfinite(y)
@@ -354,7 +355,7 @@ def solve_with_prior(st: np.ndarray, S: np.ndarray, w: float, kappa: float, mu: 
     (psi, F_0) ~ N(mu, c) (scaled units, N_PRIOR entries): writes theta (N_OBS_PARAMS,) and the variances of the REPORTED entries
     (B + f_v, f_c) into var (4,) (the others NaN). False (nothing to report) if a system is singular.
 
-    S (9, 9) is the regressor-noise covariance the bias compensation subtracts; w the rows'
+    S (N_OBS_PARAMS, N_OBS_PARAMS) is the regressor-noise covariance the bias compensation subtracts; w the rows'
     forgetting-weighted count; kappa the residuals' long-run variance factor. The residual
     variance is that of the fit with psi held at mu (the prior's centre): the free directions'
     small residuals would give the rows too much weight against the prior (measured in batch,
