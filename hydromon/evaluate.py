@@ -107,6 +107,7 @@ def to_json(ev: Evaluation) -> dict:
                    "duplicate_samples": rec.duplicate, "out_of_order_samples": rec.out_of_order}
     out["timestamp_jitter"] = {"intervals": rec.jitter, "max_s": rec.jitter_max}
     out["config_changes"] = {"count": rec.config_changes, "skipped_samples": rec.skipped}
+    out["memory_s"] = (ev.options or IdentOptions()).memory_s(rec.config.sample_rate)  # None: a growing window
     if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
         r = ev.refined
         out["refined"] = {"ok": r.ok, "message": r.message,
@@ -128,6 +129,9 @@ def render(ev: Evaluation, console=None) -> None:
     level = "unknown" if a.level < 0 else str(a.level)
     console.print(f"grade [bold]{a.grade}[/bold]  level {level}  confidence {a.confidence:.3f}  "
                   f"status {ev.status}")
+    memory = (ev.options or IdentOptions()).memory_s(r.config.sample_rate)
+    if memory is not None:  # the default, a growing window, needs no line
+        console.print(f"estimators' memory {memory:g} s (--memory): data older than that fades")
     t = Table(show_header=True, header_style="bold")
     ref = ev.refined
     cols = [("parameter", "left"), ("value", "right"), ("std error", "right")]

@@ -161,6 +161,14 @@ class IdentOptions(BaseModel):
     rest_pause: float = Field(0.5, ge=0)
     observer_step_guard: float = Field(0.5, ge=0)
 
+    def memory_s(self, sample_rate: float) -> float | None:
+        """The estimators' memory [s] at ``sample_rate`` [Hz]: the S of ``lam = exp(-1 / (S rate))``
+        (``--memory S``), to 6 significant digits (lam, a double near 1, holds S to about
+        S rate 1e-16 relative: 1e-8 for a day at 1 kHz); None for lam = 1 (a growing window)."""
+        if self.lam >= 1.0:
+            return None
+        return float(f"{-1.0 / (sample_rate * math.log(self.lam)):.6g}")
+
 
 @functools.lru_cache(maxsize=16)
 def _filters(options: IdentOptions, h: float) -> tuple:

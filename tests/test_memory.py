@@ -8,6 +8,7 @@ into a run (paper-var, realistic noise) was still graded `average` 10 min later,
 from __future__ import annotations
 
 import argparse
+import json
 import math
 
 import numpy as np
@@ -15,6 +16,7 @@ import pytest
 
 from hydromon.cli import main
 from hydromon.commands._memory import options_from_args
+from monitor.ident_options import IdentOptions
 from monitor.pipeline import Pipeline
 from plant_sim.noise import noise_model
 from plant_sim.params import PlantParams
@@ -68,6 +70,20 @@ def test_memory_maps_to_a_forgetting_factor_and_refuses_too_short():
     for bad in (5.0, 0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="--memory"):
             options_from_args(argparse.Namespace(memory=bad), 100.0)
+
+
+@pytest.mark.parametrize("memory", [10.0, 60.0, 120.0, 600.0, 3600.0, 86400.0])
+@pytest.mark.parametrize("rate", [50.0, 100.0, 1000.0])
+def test_memory_is_read_back_from_the_options(memory, rate):
+    assert options_from_args(argparse.Namespace(memory=memory), rate).memory_s(rate) == memory
+    assert IdentOptions().memory_s(rate) is None  # lam = 1: a growing window
+
+
+def test_evaluate_json_says_which_memory_graded_it(capsys):
+    golden = "recordings/table4-clean.mcap"
+    for args, memory in (([], None), (["--memory", "120"], 120.0)):
+        assert main(["evaluate", golden, "--rig", "table4-g3", "--json", *args]) == 0
+        assert json.loads(capsys.readouterr().out)["memory_s"] == memory
 
 
 def test_cli_memory_is_checked_before_anything_runs(tmp_path, capsys):
