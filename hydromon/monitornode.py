@@ -37,7 +37,7 @@ from hydromon.monitorcore import MonitorCore, MonitorCounters  # noqa: F401  (re
 from hydromon.quietgc import QuietGC
 from monitor.pipeline import warm_up
 
-__all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "SilenceWatch", "RigKeys", "log_rig_warning",
+__all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "SilenceWatch", "BacklogWatch", "RigKeys", "log_rig_warning",
            "run_monitor", "rig_pattern", "REJECT_REASONS"]
 
 log = logging.getLogger(__name__)
@@ -139,6 +139,56 @@ class SilenceWatch:
         return [ids[r] for r in np.flatnonzero(now - self._since >= self.forget_after).tolist() if ids[r]]
 
 
+class BacklogWatch:
+    """Says when the node falls behind its input, and when it has caught up.
+
+    ``observe(n, now)`` takes the size of each drained batch and the node's clock ``now`` [s];
+    it returns a line to log, or None. A batch drained full (``max_batch`` messages) means more
+    than a batch was queued; batches full for ``after`` [s] in a row mean arrivals outpace
+    processing, so every health message comes later than the one before: the node says so once
+    (with the rate it takes messages at, so an operator can size shards), and once more when a
+    batch is no longer full. A start-up burst (routes coming up, a queue that filled while the
+    kernels loaded) drains within that time and says nothing. Without it, an overloaded
+    monitor's only symptom was health arriving ever later, with nothing in its log.
+    """
+
+    def __init__(self, max_batch: int, after: float = 2.0):
+        if max_batch < 1 or not after > 0:
+            raise ValueError(f"max batch {max_batch!r} must be >= 1 and after {after!r} s > 0")
+        self.max_batch, self.after = int(max_batch), float(after)
+        self._since: float | None = None  # when the current run of full batches began
+        self._taken = 0                     # messages taken in it
+        self._told = False
+        self.episodes = 0                   # runs of full batches reported
+        self.seconds = 0.0                  # their total length [s] (the current one once it ends)
+
+    def observe(self, n: int, now: float) -> str | None:
+        if n >= self.max_batch:
+            if self._since is None:
+                self._since, self._taken, self._told = now, 0, False
+            self._taken += n
+            behind = now - self._since
+            if not self._told and behind >= self.after:
+                self._told = True
+                self.episodes += 1
+                return (f"monitor: behind its input for {behind:.1f} s: every batch drained full ({self.max_batch} "
+                        f"messages) while it took {self._taken / behind:.0f} a second, so health comes later "
+                        "and later; too many rigs for this process (shard them over monitors with --rigs PATTERN)")
+            return None
+        return self._end(now)
+
+    def _end(self, now: float, how: str = "caught up") -> str | None:
+        since, told, self._since = self._since, self._told, None
+        if since is None or not told:
+            return None
+        self.seconds += now - since
+        return f"monitor: {how} after {now - since:.1f} s behind its input"
+
+    def close(self, now: float) -> str | None:
+        """The line for a node that stops while behind (None if it is not)."""
+        return self._end(now, "stopped while still behind")
+
+
 class RigKeys:
     """The sample and health keys of the monitor's rigs, declared on its session
     (``session.declare_keyexpr``), so that zenoh routes them from a cache.
@@ -238,7 +288,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 poll_s: float = 0.005, on_health: Callable[[str, bytes], None] | None = None,
                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
                 config_query_s: float = 5.0, clock=time.monotonic, rigs: str = "*",
-                stale_after_s: float | None = 2.0, forget_after_s: float | None = None) -> MonitorCore:
+                stale_after_s: float | None = 2.0, forget_after_s: float | None = None,
+                behind_after_s: float = 2.0) -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
 
     Parameters
@@ -273,6 +324,9 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         A rig that has sent no sample for this long [s] is forgotten (``MonitorCore.forget``:
         its estimates, latest health and row go; it starts afresh if it comes back), and logged.
         None: never.
+    behind_after_s : float
+        Batches drained full for this long [s] are logged as the node falling behind its
+        input, and the catch-up after (:class:`BacklogWatch`).
 
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
@@ -285,6 +339,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     deadline = None if duration is None else clock() + duration
     watch = None if stale_after_s is None and forget_after_s is None else SilenceWatch(stale_after_s, forget_after_s)
     watch_every = 0.25 if stale_after_s is None else min(0.25, stale_after_s / 4)
+    backlog = BacklogWatch(max_batch, behind_after_s)  # checks its arguments before anything is declared
     flush_log = getattr(core.on_reject, "flush", None)  # a RateLimitedLog's due counts
 
     def answer(query: zenoh.Query) -> None:
@@ -343,6 +398,10 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             publish(out)
         return len(batch)
 
+    def tell(line: str | None) -> None:
+        if line is not None:
+            log.warning(line)
+
     quiet = QuietGC()
     quiet.__enter__()  # left in the finally below
     next_watch = clock()
@@ -350,6 +409,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         while True:
             started = time.perf_counter()
             n = drain()
+            tell(backlog.observe(n, clock()))
             if clock() >= next_watch:
                 now = clock()
                 if watch is not None:
@@ -380,6 +440,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         log.warning("monitor stopping: %s", exc)
     finally:
         quiet.__exit__()
+        tell(backlog.close(clock()))
         keys.close()
         if flush_log is not None:
             flush_log(final=True)
