@@ -37,8 +37,8 @@ from hydromon.monitorcore import MonitorCore, MonitorCounters  # noqa: F401  (re
 from hydromon.quietgc import QuietGC
 from monitor.pipeline import warm_up
 
-__all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "SilenceWatch", "BacklogWatch", "RigKeys", "log_rig_warning",
-           "run_monitor", "rig_pattern", "REJECT_REASONS"]
+__all__ = ["MonitorCore", "MonitorCounters", "RateLimitedLog", "SilenceWatch", "BacklogWatch", "RigKeys",
+           "log_rig_warning", "run_monitor", "rig_pattern", "REJECT_REASONS"]
 
 log = logging.getLogger(__name__)
 
