@@ -13,6 +13,7 @@ from test_monitorcore_batching import _payload
 from hydromon.bus import listening_session, open_session
 from hydromon.monitorcore import MonitorCore
 from hydromon.monitornode import BacklogWatch, run_monitor
+from monitor.pipeline import warm_up
 
 
 def test_full_batches_for_a_while_are_told_once_and_the_catch_up_after():
@@ -54,10 +55,11 @@ def test_bad_arguments_are_refused(max_batch, after):
 
 
 @pytest.mark.network
-@pytest.mark.timeout(120)
+@pytest.mark.timeout(600)  # a fresh checkout compiles the kernels first (about a minute here)
 def test_a_monitor_node_behind_its_input_says_so_then_catches_up(caplog):
     """Loopback: 20,000 samples put at once, a monitor that takes two a batch (a batch costs it
     tens of microseconds, a put a few): the queue holds thousands for a while, then drains."""
+    warm_up()  # here, not in the node's thread, so the waits below do not include compiling
     n = 20_000
     core = MonitorCore(eval_every=10)
     with listening_session() as (mon_s, ep), open_session("peer", connect=[ep]) as pub_s, \
