@@ -54,6 +54,11 @@ class Evaluation:
             return "bad-input"
         return "ok" if self.assessment.converged and self.assessment.level >= 0 else "converging"
 
+    @property
+    def memory_s(self) -> float | None:
+        """The estimators' memory [s] it was graded with (``--memory``); None: a growing window."""
+        return (self.options or IdentOptions()).memory_s(self.recording.config.sample_rate)
+
 
 def evaluate(recording: Recording, ranges: Ranges | None = None,
              options: IdentOptions | None = None, refined: bool = False) -> Evaluation:
@@ -107,7 +112,7 @@ def to_json(ev: Evaluation) -> dict:
                    "duplicate_samples": rec.duplicate, "out_of_order_samples": rec.out_of_order}
     out["timestamp_jitter"] = {"intervals": rec.jitter, "max_s": rec.jitter_max}
     out["config_changes"] = {"count": rec.config_changes, "skipped_samples": rec.skipped}
-    out["memory_s"] = (ev.options or IdentOptions()).memory_s(rec.config.sample_rate)  # None: a growing window
+    out["memory_s"] = ev.memory_s  # None: a growing window
     if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
         r = ev.refined
         out["refined"] = {"ok": r.ok, "message": r.message,
@@ -129,9 +134,8 @@ def render(ev: Evaluation, console=None) -> None:
     level = "unknown" if a.level < 0 else str(a.level)
     console.print(f"grade [bold]{a.grade}[/bold]  level {level}  confidence {a.confidence:.3f}  "
                   f"status {ev.status}")
-    memory = (ev.options or IdentOptions()).memory_s(r.config.sample_rate)
-    if memory is not None:  # the default, a growing window, needs no line
-        console.print(f"estimators' memory {memory:g} s (--memory): data older than that fades")
+    if ev.memory_s is not None:  # the default, a growing window, needs no line
+        console.print(f"estimators' memory {ev.memory_s:g} s (--memory): data older than that fades")
     t = Table(show_header=True, header_style="bold")
     ref = ev.refined
     cols = [("parameter", "left"), ("value", "right"), ("std error", "right")]

@@ -73,6 +73,7 @@ class NaiveIdentifier:
         self.warm = math.ceil(o.warmup / c.h)
         self.guard = math.ceil(o.reversal_guard / c.h)
         self.rest_pause = math.ceil(o.rest_pause / c.h)
+        self.obs_step_guard = math.ceil(o.observer_step_guard / c.h)
         self.n = 0
         self.ring = np.zeros((RING, N_CH))
         self.noise = np.zeros(4)
@@ -346,7 +347,7 @@ class NaiveIdentifier:
             self.rows[0] += 1.0
             self.bc[0] = o.lam * self.bc[0] + 1.0
             self._residual(0, y - phi @ self.th_f, o.lam)
-        if yo is not None and self.obs_step >= math.ceil(o.observer_step_guard / self.h):
+        if yo is not None and self.obs_step >= self.obs_step_guard:
             self._observer_row(phi, yo)
 
     def _static_gain(self, n: int, x1: float) -> None:
@@ -357,7 +358,7 @@ class NaiveIdentifier:
         if n == 2 * SG_HALF:
             self.svf_k = np.array([self._svf_init(self.f_mats, v) for v in u])
             self.since_step = 0.0
-            self.obs_step = float(math.ceil(o.observer_step_guard / self.h))
+            self.obs_step = float(self.obs_step_guard)
         yk = np.empty((2, 3))
         for i in range(2):
             self.svf_k[i], yk[i] = self._svf(self.f_mats, self.svf_k[i], u[i])

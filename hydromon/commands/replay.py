@@ -74,10 +74,9 @@ def check_args(args) -> None:
         _checks.non_negative("--wait", args.wait, unit="s")
         if args.out:
             raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
-        if args.ranges is not None:
-            raise ValueError("--ranges goes with --direct (a bus replay publishes samples; the monitor grades them)")
-        if args.memory is not None:
-            raise ValueError("--memory goes with --direct (a bus replay publishes samples; the monitor grades them)")
+        for opt, value in (("--ranges", args.ranges), ("--memory", args.memory)):
+            if value is not None:
+                raise ValueError(f"{opt} goes with --direct (a bus replay publishes samples; the monitor grades them)")
     check_memory(args)
 
 
