@@ -17,6 +17,10 @@ Run: python benchmarks/audit_sweep.py
 
 from __future__ import annotations
 
+from hydromon.cli import jitcache
+
+jitcache.configure()  # before any kernel is imported
+
 import argparse
 import time
 

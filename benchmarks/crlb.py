@@ -14,13 +14,18 @@ Run: python benchmarks/crlb.py [--seconds 10 60] [--noise realistic]
 
 from __future__ import annotations
 
+from hydromon.cli import jitcache
+
+jitcache.configure()  # before any kernel is imported
+
 import argparse
 import math
 
 import numpy as np
 
 from plant_sim.noise import noise_model
-from plant_sim.params import PlantParams, RigConfig
+from hydromon.contract import RigConfig
+from plant_sim.params import PlantParams
 from plant_sim.profiles import PaperIdentification
 from plant_sim.simulate import simulate
 

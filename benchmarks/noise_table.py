@@ -6,6 +6,10 @@ truth lies inside our +-3 standard errors. Run: python benchmarks/noise_table.py
 
 from __future__ import annotations
 
+from hydromon.cli import jitcache
+
+jitcache.configure()  # before any kernel is imported
+
 import argparse
 
 import numpy as np
@@ -13,7 +17,8 @@ import numpy as np
 from monitor.paper_recipe import identify_paper
 from monitor.pipeline import Fleet
 from plant_sim.noise import noise_model
-from plant_sim.params import PlantParams, RigConfig
+from hydromon.contract import RigConfig
+from plant_sim.params import PlantParams
 from plant_sim.profiles import PaperIdentification
 from plant_sim.simulate import simulate_fleet
 

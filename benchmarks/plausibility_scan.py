@@ -5,6 +5,10 @@ Run: python benchmarks/plausibility_scan.py
 """
 from __future__ import annotations
 
+from hydromon.cli import jitcache
+
+jitcache.configure()  # before any kernel is imported
+
 import argparse
 
 import numpy as np
@@ -12,7 +16,7 @@ import numpy as np
 from monitor.pipeline import Fleet
 from plant_sim.degradation import degrade
 from plant_sim.noise import noise_model
-from plant_sim.params import RigConfig
+from hydromon.contract import RigConfig
 from plant_sim.profiles import Chirp, Multisine, PaperIdentification, PaperVariable
 from plant_sim.simulate import simulate_fleet
 

@@ -10,6 +10,10 @@ its +-3 SE. Run: python benchmarks/valve_grading.py
 
 from __future__ import annotations
 
+from hydromon.cli import jitcache
+
+jitcache.configure()  # before any kernel is imported
+
 import argparse
 
 import numpy as np
@@ -18,7 +22,7 @@ from monitor.grading import Ranges, grade_of_values
 from monitor.pipeline import Fleet
 from plant_sim.degradation import degrade
 from plant_sim.noise import noise_model
-from plant_sim.params import RigConfig
+from hydromon.contract import RigConfig
 from plant_sim.profiles import Chirp, Multisine, PaperVariable
 from plant_sim.simulate import simulate_fleet
 

@@ -1,1 +1,1 @@
-import plant_sim  # noqa: F401  (sets the jit cache directory before any kernel is compiled)
+"""The numerical core: filters, identification, grading, calibration, audit (pure, deterministic)."""

@@ -34,9 +34,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .names import PARAM_NAMES
+from hydromon.contract import PARAM_NAMES
 from plant_sim.degradation import degrade
-from plant_sim.params import RigConfig
+from hydromon.contract import RigConfig
 from plant_sim.profiles import PaperIdentification
 
 from .grading import ParamRange, Ranges

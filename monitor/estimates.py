@@ -1,7 +1,7 @@
 """Read-out of an identifier state: physical parameters and honest standard errors.
 
 Pure kernels, run when a result is wanted (not on every sample). In PARAM_NAMES order
-(monitor.names): m [kg], B_fv [N s/m], f_c [N], K_t [N/m], inv_beta_e [1/Pa],
+(hydromon.contract.names): m [kg], B_fv [N s/m], f_c [N], K_t [N/m], inv_beta_e [1/Pa],
 CdW_sqrt_rho [m^2.5/kg^0.5], C_ip, C_ep [m^3/(s Pa)], two_zeta_omega [rad/s],
 omega_sv2 [rad^2/s^2], K_sv_omega_sv2 [m/(V s^2)], K_sv [m/V].
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .names import PARAM_NAMES
+from hydromon.contract import PARAM_NAMES
 
 from .estimates import estimates
 from .grading import grade_kernel

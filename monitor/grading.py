@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .names import PARAM_NAMES
+from hydromon.contract import PARAM_NAMES
 
 from .ranges import DEFAULT_RANGES_PATH, ParamRange, RangeArrays, Ranges, grade_name  # noqa: F401  (re-exported)
 

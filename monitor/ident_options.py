@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit
 from pydantic import BaseModel, ConfigDict, Field
 
-from plant_sim.params import RigConfig
+from hydromon.contract import RigConfig
 
 from .layout import (
     C_A1,

@@ -53,9 +53,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .names import PARAM_NAMES
+from hydromon.contract import PARAM_NAMES
 from plant_sim.model import orifice_z
-from plant_sim.params import RigConfig
+from hydromon.contract import RigConfig
 
 from .rls import rls_step
 from .td import config_scales, td_filter, td_lag

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .names import PARAM_NAMES
-from plant_sim.noise import CHANNELS
-from plant_sim.params import RigConfig
+from hydromon.contract import PARAM_NAMES
+from hydromon.contract import SENSORS
+from hydromon.contract import RigConfig
 
 from .fleet_kernel import N_P, _run, assess_rig, partition_rigs, pipeline_step
 from .grading import Ranges, grade_kernel
@@ -314,8 +314,8 @@ class Fleet:
 
     def glitches(self, rig: int) -> dict[str, int]:
         """Sensor samples of one rig the outlier gate replaced so far, per sensor."""
-        counts = self.states[rig, O_OUTLIERS:O_OUTLIERS + len(CHANNELS)]
-        return {name: int(c) for name, c in zip(CHANNELS, counts)}
+        counts = self.states[rig, O_OUTLIERS:O_OUTLIERS + len(SENSORS)]
+        return {name: int(c) for name, c in zip(SENSORS, counts)}
 
     def x1_clamped(self, rig: int) -> int:
         """Samples of one rig whose x1 would have emptied a chamber (V_i under 1 % of V_i0): not

@@ -27,7 +27,7 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit
 
-from .names import PARAM_NAMES
+from hydromon.contract import PARAM_NAMES
 
 __all__ = ["POSITIVE", "Z_IMPLAUSIBLE", "any_impossible", "impossible", "implausible_names"]
 

@@ -19,7 +19,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, mo
 
 from plant_sim.validation import brief_error
 
-from .names import GRADES, PARAM_NAMES
+from hydromon.contract import GRADES, PARAM_NAMES
 
 __all__ = ["ParamRange", "Ranges", "RangeArrays", "grade_name", "DEFAULT_RANGES_PATH", "PAPER_TABLE3_PATH"]
 

@@ -32,14 +32,14 @@ import numpy as np
 from numba import njit
 from scipy.optimize import least_squares
 
-from .names import PARAM_NAMES
+from hydromon.contract import PARAM_NAMES
 from monitor.ident_options import IdentOptions
 from monitor.outlier_gate import gated
 from plant_sim.model import derivatives
-from plant_sim.noise import CHANNELS
+from hydromon.contract import SENSORS
+from hydromon.contract import RigConfig
 from plant_sim.params import (
-    P_B, P_BETA, P_CDW_RHO, P_CEP, P_CIP, P_FC, P_FV, P_KSV, P_KT, P_M, P_WSV, P_ZSV, PlantParams, RigConfig,
-    plant_vector,
+    P_B, P_BETA, P_CDW_RHO, P_CEP, P_CIP, P_FC, P_FV, P_KSV, P_KT, P_M, P_WSV, P_ZSV, PlantParams, plant_vector,
 )
 
 __all__ = ["Refinement", "refine", "sensor_noise", "command_jumps", "REFINED"]
@@ -275,7 +275,7 @@ def refine(samples: np.ndarray, config: RigConfig, start: dict[str, float], skip
         w = innovations(meas, ug, u * NOMINAL, base, h, sig, PROCESS_NOISE, n0, jump)
         return np.where(np.isfinite(w), w, 1e6)
 
-    noise_d = dict(zip(CHANNELS, map(float, sig)))
+    noise_d = dict(zip(SENSORS, map(float, sig)))
     fail = Refinement(_with_static_gain(th0, None)[0], dict.fromkeys(PARAM_NAMES, math.inf), False, "", 0, noise_d)
     try:
         res = least_squares(cost, th0 / NOMINAL, method="lm", x_scale="jac", max_nfev=max_evaluations)

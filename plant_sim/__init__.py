@@ -1,1 +1,1 @@
-from plant_sim import _jitcache  # noqa: F401  (before any kernel is compiled)
+"""The rig's physics: model, integrator, input profiles, degradation, noise, effects (pure)."""

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .params import PlantParams
+from hydromon.contract import GRADES
 
-GRADES = ("health", "sub-health", "average", "deterioration", "fault")
+from .params import PlantParams
 
 # Table 3 bounds at s = 0, 0.2, 0.4, 0.6, 0.8, 1.0 (band edges), SI.
 KNOTS_S = np.array([0.0, 0.2, 0.4, 0.6, 0.8, 1.0])

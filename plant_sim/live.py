@@ -27,7 +27,8 @@ from numba import njit
 from .integrate import DEFAULT_SUBSTEPS, advance
 from .model import null_state
 from .noise import NoiseModel, add_noise
-from .params import Effects, PlantParams, RigConfig, plant_vector
+from hydromon.contract import RigConfig
+from .params import Effects, PlantParams, plant_vector
 from .profiles import Profile
 
 __all__ = ["PlantFleet", "Block", "step_fleet", "command_block"]

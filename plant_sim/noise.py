@@ -11,9 +11,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from .params import RigConfig
-
-CHANNELS = ("x1", "x3", "x4", "x5")
+from hydromon.contract import RigConfig
 
 
 class NoiseModel(BaseModel):

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hydromon.contract import SAMPLE_LIMITS
+
 __all__ = [
     "Profile", "PaperIdentification", "PaperVariable", "Steps", "Chirp", "Multisine",
     "FromFile", "parse_profile", "PROFILE_NAMES",
@@ -126,7 +128,7 @@ class FromFile(Profile):
 
     # [V] a command beyond this is not a servo-valve voltage (the bus contract's ug limit; a
     # file in mV or raw counts): refused rather than simulated into out-of-contract samples
-    UG_LIMIT = 1e3
+    UG_LIMIT = SAMPLE_LIMITS["ug"]
 
     @classmethod
     def load(cls, path: str | Path) -> "FromFile":

@@ -9,7 +9,8 @@ import numpy as np
 from .integrate import DEFAULT_SUBSTEPS, run_fleet
 from .model import null_state
 from .noise import NoiseModel, add_noise
-from .params import Effects, PlantParams, RigConfig, plant_vector
+from hydromon.contract import RigConfig
+from .params import Effects, PlantParams, plant_vector
 from .profiles import Profile
 
 __all__ = ["Run", "simulate", "simulate_fleet", "command_grid"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import socket
 import time
 
+import numpy as np
 import orjson
 
 from monitor.pipeline import eval_phase
@@ -32,9 +33,9 @@ def held_port() -> tuple[socket.socket, str]:
 
 
 def taken_first(monkeypatch, taken: str) -> None:
-    """The race of ``hydromon.bus.free_tcp_endpoint``, made certain: it hands out ``taken`` (a
+    """The race of ``hydromon.bus.session.free_tcp_endpoint``, made certain: it hands out ``taken`` (a
     port someone took after it was found free) first, then free ports."""
-    from hydromon import bus
+    from hydromon.bus import session as bus
 
     picks, real = [taken], bus.free_tcp_endpoint
     monkeypatch.setattr(bus, "free_tcp_endpoint", lambda host="127.0.0.1": picks.pop(0) if picks else real(host))
@@ -134,3 +135,89 @@ def flip_in_chunk(data: bytes, i: int, bit: int = 2) -> bytes:
     bad = bytearray(data)
     bad[end - compressed // 2] ^= 1 << bit
     return bytes(bad)
+
+
+def fleet_messages(spec, seconds: float, ns: str = "hydro") -> list[tuple[str, bytes]]:
+    """What the sim node would publish for ``spec`` (a FleetSpec) over ``seconds`` [s]: configs,
+    then samples interleaved rig by rig."""
+    from hydromon.engine.samples import sample_payload
+    from hydromon.store.simfiles import iter_blocks
+
+    fleet = spec.build()
+    msgs = [(f"{ns}/rig/{i}/config", orjson.dumps(c.model_dump(mode="json")))
+            for i, c in zip(spec.ids, fleet.configs)]
+    for blk in iter_blocks(fleet, int(round(seconds / fleet.h)), block=200):
+        rows = blk.samples.tolist()
+        for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
+            for r, rig in enumerate(spec.ids):
+                msgs.append((f"{ns}/rig/{rig}/sample", sample_payload(seq, t, rows[r][j])))
+    return msgs
+
+
+def by_rig(health) -> dict[str, list[bytes]]:
+    """Health payloads ``[(key, payload)]`` by rig id."""
+    out = {}
+    for key, payload in health:
+        out.setdefault(key.split("/")[2], []).append(payload)
+    return out
+
+
+# -- MCAP recordings in memory ------------------------------------------------------------
+SECOND_NS = 1_000_000_000  # [ns]
+
+
+def sample_bytes(seq: int, t: float, **kw) -> bytes:
+    """A contract sample's JSON with made-up values (``kw`` overrides them)."""
+    vals = dict(ug=0.01 * seq, x1=1e-3 * np.sin(seq), x3=6e6 + seq, x4=3e6 - seq, x5=1e-5 * seq)
+    vals.update(kw)
+    from hydromon.contract import Sample
+
+    return Sample(seq=seq, t=t, **vals).model_dump_json().encode()
+
+
+def health_bytes(seq: int, t: float) -> bytes:
+    """A contract health payload's JSON."""
+    from hydromon.contract import Health
+
+    return Health(seq=seq, t=t, grade="health", level=0, confidence=0.9, params={"m": 800.0},
+                  param_grades={"m": "health"}, status="ok").model_dump_json().encode()
+
+
+def write_messages(msgs, **kw) -> tuple[bytes, list[int]]:
+    """Write ``(key, payload, log_ns, pub_ns)``; return the bytes and the size after each write."""
+    import io
+
+    from hydromon.store.mcap_write import RecordingWriter
+
+    buf = io.BytesIO()
+    sizes = []
+    w = RecordingWriter(buf, **kw)
+    for m in msgs:
+        w.write(*m)
+        sizes.append(buf.tell())
+    w.close()
+    return buf.getvalue(), sizes
+
+
+def sample_stream(n: int, dt_ns: int = 10_000_000, rig: str = "r1", t0_ns: int = 5 * SECOND_NS):
+    """``n`` sample messages ``(key, payload, log_ns, pub_ns)`` of one rig, ``dt_ns`` apart."""
+    return [(f"hydro/rig/{rig}/sample", sample_bytes(i, i * dt_ns / SECOND_NS), t0_ns + i * dt_ns, i * dt_ns)
+            for i in range(n)]
+
+
+def config_and_samples(n: int = 500):
+    """A rig config, then samples: the messages of a one-rig recording."""
+    from hydromon.contract import RigConfig
+
+    cfg = RigConfig().model_dump_json().encode()
+    return [("hydro/rig/r1/config", cfg, 5 * SECOND_NS, 5 * SECOND_NS)] + sample_stream(n)[1:]
+
+
+def working_point_sample(seq: int, ints: bool = False) -> bytes:
+    """A sample payload of a plant near its working point."""
+    # values of a plant near its working point; `ints` sends t and ug as JSON integers (valid,
+    # but not what the sim sends: the per-message path takes them)
+    t = seq // 100 if ints else seq * 0.01
+    ug = 2 if ints else 2.0 + 0.5 * ((seq * 7919) % 13) / 13
+    return orjson.dumps({"seq": seq, "t": t, "ug": ug, "x1": 0.01 + 1e-4 * (seq % 17), "x3": 6e6 + 1e4 * (seq % 5),
+                         "x4": 5e6 - 1e4 * (seq % 3), "x5": 1e-5 * (1 + seq % 4)})

@@ -1,6 +1,6 @@
 """Model audit: identify the paper's model on a record, re-simulate it, and rank named extensions.
 
-``audit(samples, config) -> AuditResult`` (pure); presenters are in ``hydromon.audit_report``.
+``audit(samples, config) -> AuditResult`` (pure); presenters are in ``hydromon.report.audit``.
 """
 
 from .audit import AuditOptions, AuditResult, CandidateResult, audit

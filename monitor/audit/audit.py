@@ -38,10 +38,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize
 
-from plant_sim.params import Effects, RigConfig
+from hydromon.contract import RigConfig
+from plant_sim.params import Effects
 
 from .candidates import LIBRARY
-from .freerun import CHANNELS, channel_scores, free_run
+from .freerun import SENSORS, channel_scores, free_run
 from .residuals import BLOCKS, Fit, build_blocks, fit_blocks, nominal_params, signals, Spec
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
@@ -124,7 +125,7 @@ class CandidateResult:
 
 @dataclass(frozen=True)
 class AuditResult:
-    """What the audit found (compute, then present: see ``hydromon.audit_report``).
+    """What the audit found (compute, then present: see ``hydromon.report.audit``).
 
     Attributes
     ----------
@@ -203,7 +204,7 @@ def _log_ratio(nom: dict, ext: dict) -> float:
 
 
 def _mean_nrmse(scores: dict) -> float:
-    return float(np.mean([scores[c]["nrmse"] for c in CHANNELS]))
+    return float(np.mean([scores[c]["nrmse"] for c in SENSORS]))
 
 
 def _output_error(cand, params, effect, s, cfg, measured, split, fallback, v0, max_runs: int = 120):

@@ -19,12 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from plant_sim.integrate import DEFAULT_SUBSTEPS, run_fleet
-from plant_sim.noise import CHANNELS
-from plant_sim.params import Effects, PlantParams, RigConfig, plant_vector
+from hydromon.contract import SENSORS
+from hydromon.contract import RigConfig
+from plant_sim.params import Effects, PlantParams, plant_vector
 from plant_sim.profiles import FromFile
 from plant_sim.simulate import command_grid
 
-__all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "CHANNELS"]
+__all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "SENSORS"]
 
 _RHO, _CD = 880.0, 0.6
 
@@ -130,7 +131,7 @@ def channel_scores(measured: np.ndarray, simulated: np.ndarray, rows: slice | np
     """Per channel over ``rows``: NRMSE (rms error / std of the measurement) and
     fit % = 100 (1 - ||e|| / ||y - mean y||)."""
     out = {}
-    for i, name in enumerate(CHANNELS):
+    for i, name in enumerate(SENSORS):
         y = measured[rows, i]
         e = y - simulated[rows, i]
         sd = float(np.std(y))

@@ -46,7 +46,7 @@ from typing import Callable
 import numpy as np
 from scipy.signal import savgol_filter
 
-from plant_sim.params import RigConfig
+from hydromon.contract import RigConfig
 
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 

@@ -1,0 +1,5 @@
+"""``python -m hydromon.cli``: the ``hydromon`` command."""
+
+from hydromon.cli.main import entry
+
+entry()

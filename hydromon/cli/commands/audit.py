@@ -1,0 +1,145 @@
+"""``hydromon audit FILE``: what the simulation gets wrong in measured data (cause, extended model, gain)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hydromon.cli.rigconfig import add_config_argument, config_from_args, has_recorded_config
+
+NAME = "audit"
+HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named model extension explains it"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("file", metavar="FILE", help="CSV with header t,ug,x1,x3,x4,x5 (SI) or an MCAP recording")
+    parser.add_argument("--rig", metavar="ID", help="MCAP: which rig (needed if it holds several)")
+    add_config_argument(parser)
+    parser.add_argument("--json", action="store_true", help="print one JSON document on stdout")
+    parser.add_argument("--report", metavar="DIR", help="write audit.md and PNG plots into DIR")
+    parser.add_argument("--train-fraction", type=float, default=0.7,
+                        help="leading fraction of the record used for fitting (default 0.7)")
+
+
+def read_csv(stream, name: str = "<csv>") -> tuple[np.ndarray, np.ndarray]:
+    """``(t [s], samples (N, 5))`` from a CSV path or text stream with header t,ug,x1,x3,x4,x5:
+    ``hydromon.store.csvfile.read_csv``, whose errors name the file and line."""
+    from hydromon.store.csvfile import read_csv as read_rows
+
+    data = read_rows(stream, name)
+    return data[:, 0], data[:, 1:]
+
+
+def _stretch(rec, csv: bool) -> dict | None:
+    """The audit fits and re-simulates one stretch of evenly spaced samples: across a gap (whole
+    missing sample periods, a seq jump, an invalid sample skipped) it takes the longest stretch
+    without one, as ``evaluate --refine`` does, and says which. None when there is no gap."""
+    if not rec.restarts:
+        return None
+    lo, hi = rec.longest_stretch()
+    where = (lambda i: f"line {i + 2}") if csv else (lambda i: f"sample {i}")
+    return {"first": lo, "last": hi - 1, "t_start": float(rec.t[lo]), "t_end": float(rec.t[hi - 1]),
+            "samples": hi - lo, "of": len(rec.samples), "gaps": len(rec.restarts), "missing": rec.missing,
+            "rejected": rec.rejected, "where": f"{where(lo)} to {where(hi - 1)}"}
+
+
+def load(path: str, rig: str | None = None, config=None):
+    """``(config, samples)`` from a CSV or MCAP file, read and validated as ``hydromon evaluate``
+    reads it (``hydromon.store.recording.load_recording``: the sample rate is the rig config's, an
+    MCAP goes by seq, its duplicate messages are dropped and only the samples after its last
+    config change are taken); a ValueError (FileNotFoundError) names the file and what is wrong
+    with it. Returns ``(config, samples, stretch)``: across gaps, the samples of the longest
+    stretch without one, which ``stretch`` describes (None: no gap, every sample)."""
+    from hydromon.store.recording import load_recording
+    from monitor.audit.residuals import MIN_SAMPLES
+
+    p = Path(path)
+    name = str(p)
+    if not p.exists():
+        raise FileNotFoundError(f"{name}: no such file")
+    if p.is_dir():
+        raise ValueError(f"{name}: is a directory; give a .csv or .mcap file")
+    rec = load_recording(p, rig=rig, config=config)
+    csv = p.suffix.lower() == ".csv"
+    stretch = _stretch(rec, csv)
+    samples = rec.samples
+    if stretch is not None and stretch["samples"] < MIN_SAMPLES:
+        first = rec.restarts[0]
+        at = f"line {first + 2}" if csv else f"rig {rec.rig!r} sample {first}"
+        skipped = f"; {rec.rejected} invalid sample(s) skipped" if rec.rejected else ""
+        raise ValueError(f"{name} {at}: t = {float(rec.t[first])!r} s follows a gap ({stretch['gaps']} gap(s), "
+                         f"{rec.missing} sample(s) missing{skipped}); the longest stretch without one, "
+                         f"{stretch['where']}, has {stretch['samples']} samples and the audit needs {MIN_SAMPLES}")
+    if stretch is not None:
+        samples = rec.samples[stretch["first"]:stretch["last"] + 1]
+        skipped = f", {rec.rejected} invalid sample(s) skipped" if rec.rejected else ""
+        print(f"hydromon audit: {name}: {stretch['gaps']} gap(s) ({rec.missing} sample(s) missing{skipped}): "
+              f"auditing the longest stretch without one, {stretch['where']} (t = {stretch['t_start']:g} to "
+              f"{stretch['t_end']:g} s, {stretch['samples']} of {stretch['of']} samples)", file=sys.stderr)
+    if len(samples) < 2:
+        raise ValueError(f"{name}: {len(samples)} sample(s) in one stretch; the audit needs more")
+    if config is None and csv:  # once the file is read: an error stays one line
+        print(f"hydromon audit: {name}: the paper's rig constants (a CSV carries none; give yours with --config FILE)",
+              file=sys.stderr)
+    elif config is None and not has_recorded_config(p, rec.rig):
+        print(f"hydromon audit: no rig config for {rec.rig!r} in the recording; using the paper's", file=sys.stderr)
+    if rec.config_changes:
+        print(f"hydromon audit: {name}: the rig's config changed {rec.config_changes} time(s): auditing the "
+              f"{len(rec.samples)} samples after the last change with its constants ({rec.skipped} before it "
+              "skipped), as hydromon evaluate does", file=sys.stderr)
+    return rec.config, samples, stretch
+
+
+class Progress:
+    """``progress(done, total, name)`` for :func:`monitor.audit.audit`: once the audit has taken
+    ``every`` [s] of wall time, a line on stderr per stage at most every ``every`` [s] (a short
+    audit prints nothing; a long record takes minutes)."""
+
+    def __init__(self, every: float = 5.0, clock=time.monotonic, stream=None):
+        self.every, self.clock, self.stream = every, clock, stream
+        self.start = clock()
+        self.next = self.start + every
+
+    def __call__(self, done: int, total: int, name: str) -> None:
+        now = self.clock()
+        if now < self.next or done >= total:
+            return
+        self.next = now + self.every
+        what = "nominal model fitted" if done == 0 else f"{done} of {total} candidate extensions tried (last {name})"
+        print(f"hydromon audit: {what}, {now - self.start:.0f} s so far", file=self.stream or sys.stderr, flush=True)
+
+
+def run(args) -> int:
+    from hydromon.report.audit import summary, to_json, write_report
+    from hydromon.cli.checks import writable_dir
+    from monitor.audit import AuditOptions, audit
+    from monitor.audit.audit import impossible_params
+
+    try:  # the options first, then the file
+        options = AuditOptions(train_fraction=args.train_fraction)
+    except ValueError as exc:
+        raise ValueError(f"--train-fraction {args.train_fraction!r}: {exc}") from None
+    if args.report:
+        writable_dir("--report", args.report)
+    config, samples, stretch = load(args.file, args.rig, config_from_args(args))
+    result = audit(samples, config, options, progress=Progress())
+    # the result first: a report that cannot be written (disk full) must not take it along
+    if args.json:
+        print(json.dumps({**to_json(result), "stretch": stretch}), flush=True)
+    else:
+        print(summary(result), flush=True)
+    if args.report:
+        try:
+            path = write_report(result, args.report)
+        except OSError as exc:
+            raise ValueError(f"--report {args.report!r}: {exc.strerror or exc} (the result above is complete)") from None
+        print(f"hydromon audit: report -> {path}", file=sys.stderr)
+    # a record that does not obey the model (wrong units, signs, zeros or rig constants) is
+    # audited and reported, but its cause "none" does not mean "the model is right": a script
+    # must not read it as a pass
+    return 1 if impossible_params(result.params_nominal) else 0

@@ -1,0 +1,106 @@
+"""``hydromon monitor``: the monitor node (rig samples -> health verdicts on the bus)."""
+
+from __future__ import annotations
+
+import sys
+import threading
+
+from hydromon.cli.busopts import add_bus_arguments, session_from_args
+from hydromon.cli.memory import add_memory_argument, options_from_args
+from hydromon.cli.ranges import add_ranges_argument, ranges_from_args
+from hydromon.cli.stop import stop_on_signals
+
+NAME = "monitor"
+HELP = "grade every rig on <namespace>/rig/*/sample and publish <namespace>/rig/<id>/health"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="stop after this many seconds (default: until Ctrl-C / SIGTERM)")
+    parser.add_argument("--node", default="monitor", metavar="NAME",
+                        help="node name of the liveliness token <namespace>/monitor/NAME (default monitor)")
+    parser.add_argument("--rigs", default="*", metavar="PATTERN",
+                        help="grade only rigs whose id matches this key-expression chunk, e.g. 'line1-*' "
+                             "(shard a plant over several monitors; default all)")
+    parser.add_argument("--eval-every", type=int, default=10, metavar="N",
+                        help="a health message every N samples of a rig (default 10)")
+    parser.add_argument("--max-rigs", type=int, default=10000, metavar="N",
+                        help="most rigs this monitor holds (about 5 kB each); samples and configs of further "
+                             "rig ids are rejected as too-many-rigs (default 10000)")
+    parser.add_argument("--stale-after", type=float, default=2.0, metavar="S",
+                        help="a rig that sends no sample for S seconds has its latest health re-sent with "
+                             "status stale (default 2)")
+    parser.add_argument("--forget-after", type=float, default=None, metavar="S",
+                        help="a rig that sends no sample for S seconds is forgotten: its estimates and latest "
+                             "health are dropped and its place goes to new rigs, so rig ids that come and go "
+                             "never fill --max-rigs; if it comes back it starts afresh (default: never)")
+    add_ranges_argument(parser)
+    add_memory_argument(parser)
+    parser.add_argument("--threads", type=int, default=1, metavar="N",
+                        help="threads for the estimators when many samples arrive at once (rigs split "
+                             "between them; same numbers for any N; default 1)")
+    add_bus_arguments(parser)
+
+
+def run(args) -> int:
+    from hydromon.cli import checks
+    from hydromon.contract import liveliness_key
+    from hydromon.engine.core import MonitorCore
+    from hydromon.engine.watches import RateLimitedLog
+    from hydromon.bus.monitor import log_rig_warning, rig_pattern, run_monitor
+
+    # every option is checked here, before the bus opens and the banner is printed
+    checks.positive("--duration", args.duration)
+    checks.at_least("--eval-every", args.eval_every, 1)
+    checks.at_least("--threads", args.threads, 1)
+    checks.at_least("--max-rigs", args.max_rigs, 1)
+    checks.positive("--stale-after", args.stale_after)
+    if args.forget_after is not None:
+        checks.positive("--forget-after", args.forget_after)
+        if args.forget_after <= args.stale_after:
+            raise ValueError(f"--forget-after {args.forget_after:g} s must be longer than --stale-after "
+                             f"{args.stale_after:g} s (a rig is stale before it is forgotten)")
+    liveliness_key(args.node, args.namespace)  # the node name and the namespace
+    try:
+        rig_pattern(args.rigs)
+    except ValueError as exc:
+        raise ValueError(f"--rigs: {exc}") from None
+    ranges = ranges_from_args(args)  # a bad file fails here, before the bus
+    options = options_from_args(args, MonitorCore.SAMPLE_RATE)
+    core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
+                       on_warning=log_rig_warning, threads=args.threads, ranges=ranges, max_rigs=args.max_rigs,
+                       options=options)
+    stop = threading.Event()
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
+    try:
+        with session_from_args(args) as session:
+            print(f"hydromon monitor: node {args.node!r} on {args.namespace}/rig/{args.rigs}/sample",
+                  file=sys.stderr, flush=True)
+            run_monitor(session, namespace=args.namespace, node_name=args.node, stop_event=stop,
+                        duration=args.duration, core=core, rigs=args.rigs, stale_after_s=args.stale_after,
+                        forget_after_s=args.forget_after)
+    finally:
+        restore_signals()
+    c = core.counters
+    rejected = ", ".join(f"{k} {v}" for k, v in c.rejected.items() if v) or "none"
+    print(f"hydromon monitor: {len(core.rigs)} rig(s), {c.accepted} samples, {c.health} health messages; "
+          f"rejected: {rejected}; dropped seq {c.dropped_seq}, gaps {c.gaps} ({c.missing} samples missing), "
+          f"restarts {c.restarts}" + (f"; silent rigs' health re-sent stale {c.stale_resent} time(s)"
+                                      if c.stale_resent else "")
+          + (f"; {c.forgotten} silent rig(s) forgotten" if c.forgotten else ""), file=sys.stderr)
+    line = x1_clamped_line(core)
+    if line:
+        print(f"hydromon monitor: {line}", file=sys.stderr)
+    return 0
+
+
+def x1_clamped_line(core) -> str | None:
+    """The rigs whose x1 would have emptied a chamber, for the exit summary (None if none)."""
+    clamped = {rig: core.fleet.x1_clamped(r.row) for rig, r in core.rigs.items()}
+    clamped = {rig: n for rig, n in sorted(clamped.items()) if n}
+    if not clamped:
+        return None
+    return ("x1 beyond a chamber's end (rig constants A1, A2, V10, V20 or x1's zero, sign or unit wrong; "
+            "their chamber parameters are not to be trusted): "
+            + ", ".join(f"{rig} {n} sample(s)" for rig, n in clamped.items()))

@@ -1,0 +1,136 @@
+"""``hydromon watch``: the latest health of every rig on the bus, worst first (``hydromon.engine.board``)."""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+from hydromon.cli.busopts import add_bus_arguments, session_from_args
+from hydromon.cli.stop import stop_on_signals
+
+NAME = "watch"
+HELP = ("show the latest health of every rig on the bus, the rigs that need attention first and the "
+        "parameters that set their grade (asks the running monitors, then follows <namespace>/rig/*/health)")
+
+DEFAULT_TOP = 40
+PLAIN_EVERY_S = 5.0
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--rigs", default="*", metavar="PATTERN",
+                        help="only rigs whose id matches this key-expression chunk, e.g. 'line1-*' (default all)")
+    parser.add_argument("--once", action="store_true",
+                        help="ask the monitors for their latest health, print it and exit (exit status 1 if "
+                             "no monitor answered with a rig)")
+    parser.add_argument("--json", action="store_true",
+                        help="with --once: print {\"rigs\": {id: health}, \"counts\": {grade: n}} on stdout")
+    parser.add_argument("--wait", type=float, default=2.0, metavar="S",
+                        help="how long the monitors have to answer the query for their latest health (default 2)")
+    parser.add_argument("--top", type=int, default=DEFAULT_TOP, metavar="N",
+                        help=f"rows shown, the rigs that need attention first (default {DEFAULT_TOP}; 0 = all)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="stop after this many seconds (default: until Ctrl-C / SIGTERM)")
+    parser.add_argument("--plain", action="store_true",
+                        help=f"print a plain table every {PLAIN_EVERY_S:g} s even on a terminal")
+    add_bus_arguments(parser)
+
+
+def run(args) -> int:
+    import orjson
+    import zenoh
+
+    from hydromon.cli import checks
+    from hydromon.contract import check_namespace
+    from hydromon.bus.monitor import rig_pattern
+    from hydromon.report.board import render_board_plain, render_board_rich
+    from hydromon.engine.board import Board
+
+    checks.positive("--wait", args.wait)
+    checks.positive("--duration", args.duration)
+    checks.at_least("--top", args.top, 0)
+    if args.json and not args.once:
+        raise ValueError("--json needs --once (the live board is for people; --once --json for scripts)")
+    if args.once and args.duration is not None:
+        raise ValueError("--duration has no effect with --once (which waits --wait seconds for answers)")
+    check_namespace(args.namespace)
+    try:
+        chunk = rig_pattern(args.rigs)
+    except ValueError as exc:
+        raise ValueError(f"--rigs: {exc}") from None
+    key = f"{args.namespace}/rig/{chunk}/health"
+    top = args.top or None
+    board = Board(ns=args.namespace)
+    clock = time.monotonic
+    stop = threading.Event()
+    restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
+    try:
+        with session_from_args(args) as session:
+            # subscribe first: a verdict published while the query runs is not missed
+            sub = None if args.once else session.declare_subscriber(key, zenoh.handlers.FifoChannel(100_000))
+            # every monitor answers for the rigs it holds (sharded monitors each for theirs)
+            for reply in session.get(key, timeout=args.wait):
+                if reply.ok is not None and reply.ok.key_expr is not None:
+                    board.update(str(reply.ok.key_expr), reply.ok.payload.to_bytes(), clock())
+                if stop.is_set():
+                    break
+            if args.once:
+                return _print_once(board, args, orjson, render_board_plain, clock(), top)
+            if not board.latest:
+                print(f"hydromon watch: no monitor answered in {args.wait:g} s; following {key} for the next "
+                      "verdicts (is a monitor running on this namespace, and reachable?)", file=sys.stderr, flush=True)
+            _follow(sub, board, args, stop, clock, top, render_board_plain, render_board_rich, key)
+            sub.undeclare()
+    finally:
+        restore_signals()
+    print(render_board_plain(board, clock(), top))
+    return 0
+
+
+def _print_once(board, args, orjson, render_plain, now, top) -> int:
+    if args.json:
+        counts = board.grade_counts()
+        print(orjson.dumps({"rigs": dict(sorted(board.latest.items())), "counts": dict(sorted(counts.items())),
+                            "invalid": board.invalid}).decode())
+    elif board.latest:  # an empty table says nothing the error below does not
+        print(render_plain(board, now, top))
+    if not board.latest:
+        print(f"hydromon watch: no monitor answered with a rig's health in {args.wait:g} s (is one running on "
+              f"namespace {args.namespace!r}, and reachable? --connect ENDPOINT)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _follow(sub, board, args, stop, clock, top, render_plain, render_rich, key) -> None:
+    """Take every verdict as it comes; redraw the board until Ctrl-C or --duration."""
+    deadline = None if args.duration is None else clock() + args.duration
+
+    def drain():
+        while (m := sub.try_recv()) is not None:
+            board.update(str(m.key_expr), m.payload.to_bytes(), clock())
+
+    def done():
+        return stop.is_set() or (deadline is not None and clock() >= deadline)
+
+    title = f"hydromon watch - {key} (Ctrl-C to stop)"
+    if not args.plain and sys.stdout.isatty():
+        from rich.console import Console
+        from rich.live import Live
+
+        console = Console()
+        with Live(render_rich(board, clock(), top, title, console.width), console=console, refresh_per_second=2,
+                  transient=True) as live:
+            while not done():
+                stop.wait(0.5)
+                drain()
+                live.update(render_rich(board, clock(), top, title, console.width))
+        drain()
+        return
+    next_print = clock()
+    while not done():
+        drain()
+        if clock() >= next_print:
+            next_print += PLAIN_EVERY_S
+            print(render_plain(board, clock(), top) + "\n", flush=True)
+        stop.wait(0.2)
+    drain()

@@ -1,0 +1,114 @@
+"""``hydromon``: one entry point; each subcommand is a module in hydromon/cli/commands.
+
+A command module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``,
+and ``KERNELS`` if it runs the compiled numerical kernels (see :func:`_compile_notice`).
+Argument parsing lives here and in those modules only; the work they call is elsewhere.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import logging
+import os
+import sys
+import threading
+
+from hydromon.cli import commands, jitcache
+
+DESCRIPTION = ("physics-based health grading of hydraulic position servos (Lin et al. 2023): simulated "
+               "or real rigs on Zenoh, graded live, recorded to MCAP; `hydromon COMMAND --help` for each")
+
+
+def _command_modules():
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda i: i.name):
+        if not info.name.startswith("_"):
+            yield importlib.import_module(f"hydromon.cli.commands.{info.name}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hydromon", description=DESCRIPTION)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for mod in _command_modules():
+        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run, _kernels=getattr(mod, "KERNELS", False))
+    return parser
+
+
+COMPILE_NOTICE_AFTER_S = 2.0
+"""A command that uses the numerical kernels and is still running this long after it started
+on a cold cache says why it is slow."""
+
+
+def _compile_notice(args) -> threading.Timer | None:
+    """Started for a command whose module sets ``KERNELS`` (True, or a function of its
+    arguments) when numba's cache is empty:
+    its first kernel calls compile for about a minute, with nothing else to show for it."""
+    kernels = getattr(args, "_kernels", False)
+    if not (kernels(args) if callable(kernels) else kernels) or not jitcache.is_cold():
+        return None
+    timer = threading.Timer(COMPILE_NOTICE_AFTER_S, lambda: print(
+        f"hydromon {args.command}: first run of this version on this machine: compiling the numerical "
+        "kernels (about a minute; cached for every later run)", file=sys.stderr, flush=True))
+    timer.daemon = True
+    timer.start()
+    return timer
+
+
+def main(argv: list[str] | None = None) -> int:
+    jitcache.configure()  # before any command module imports a kernel
+    args = build_parser().parse_args(argv)
+    notice = _compile_notice(args)
+    try:
+        return int(args._run(args) or 0)
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:  # stdout closed by the reader (`... --json | head`): not our error
+        try:
+            sys.stdout = open(os.devnull, "w")  # the interpreter's final flush must not fail again
+        except OSError:
+            pass
+        return 141  # 128 + SIGPIPE, as a shell reports a pipe's writer
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except ConnectionError as exc:  # the bus (hydromon.bus.session.open_session): not a usage error, not a crash
+        print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # the system refused (a full disk, a permission): one line, not a traceback
+        print(f"hydromon {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        if notice is not None:
+            notice.cancel()
+
+
+def entry() -> None:
+    """The ``hydromon`` console script (and ``python -m hydromon.cli``): :func:`main`, then out
+    without the interpreter's finalization.
+
+    Zenoh's runtime threads outlive a closed session; one that touches Python while the
+    interpreter finalizes is stopped mid-unwind and aborts the process (SIGABRT, "FATAL:
+    exception not rethrown": one ``hydromon demo`` in 14 under load, after its work was done and
+    reported). Every command has closed its files and sessions when it returns, so the output
+    is flushed and the process leaves with the command's status.
+    """
+    try:
+        code = main()
+    except SystemExit as exc:  # argparse: --help (0) or a usage error (2), already printed
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        if not isinstance(exc.code, (int, type(None))):
+            print(exc.code, file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except BrokenPipeError:  # the reader left before the last bytes: as main() does
+            code = code or 141
+        except (OSError, ValueError):
+            pass
+    logging.shutdown()
+    os._exit(code)
+
+

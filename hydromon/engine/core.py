@@ -1,0 +1,443 @@
+"""The monitor without the bus: raw ``(key, payload)`` messages in, health messages out.
+
+:class:`MonitorCore` has no clock, no threads and no I/O, so the live node
+(``hydromon.bus.monitor``), ``hydromon replay`` over the bus and ``hydromon replay --direct``
+all give the same health for the same message sequence, and tests drive it in memory.
+Payloads are validated by ``hydromon.engine.validate``; each rig's sequence numbers follow
+``hydromon.engine.sequence`` (a gap restarts the rig's filters, a restart its estimates); the
+status of a verdict is ``hydromon.engine.status``'s. A batch's regular samples take a faster
+path with the same result (``hydromon.engine.batch``).
+
+``<ns>/rig/<id>/health`` keys are the monitor's own output (recordings hold them): they
+are skipped and counted as ``ignored``, not rejected. A rejected config leaves the rig graded on
+the constants it had (its next health says ``bad-input``); a rig whose x1 went beyond a
+chamber's end since its estimates (re)started says ``bad-input`` too (``X1_CLAMPED_WARNING``;
+the grade stays). The first health after a gap, and every one until ``stale_samples`` (default
+``eval_every``) samples have followed it, says ``stale``; so does the latest health re-sent by
+:meth:`MonitorCore.stale` for a rig that went silent (the node decides when:
+``hydromon.engine.watches.SilenceWatch``).
+
+Health payloads carry finite numbers only (JSON has no NaN/inf): a parameter whose
+estimate or standard error is not finite (an equation without enough rows has infinite
+standard errors) is left out of ``params`` / ``std_errors``; confidence is clipped to
+[0, 1] (0 if not finite). ``seq`` and ``t`` are those of the sample after which the rig
+was evaluated; ``level`` is null and ``grade`` ``"unknown"`` when the level is -1.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from operator import attrgetter, itemgetter
+
+import numpy as np
+import orjson
+
+from hydromon.contract import (
+    DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, check_namespace, health_key, sample_key, split_rig_key,
+)
+from hydromon.engine.batch import RegularBatch
+from hydromon.engine.counters import MonitorCounters
+from hydromon.engine.validate import Rejected, decode_json, parse_config, parse_sample
+from hydromon.engine.health_json import health_payloads
+from hydromon.engine.sequence import DUPLICATE, GAP, OUT_OF_ORDER, RESTART, sequence_step
+from hydromon.engine.status import health_status
+from monitor.pipeline import Fleet
+
+__all__ = ["MonitorCore", "X1_CLAMPED_WARNING"]
+
+
+X1_CLAMPED_WARNING = ("x1 went beyond a chamber's end: the rig constants (A1, A2, V10, V20) or x1's zero, "
+                      "sign or unit are wrong; its chamber parameters are not to be trusted")
+
+
+@dataclass(eq=False)  # identity: `None in rigs` must not call a field-wise __eq__ per rig
+class _Rig:
+    row: int
+    config: RigConfig | None
+
+
+# per-row sequence state of MonitorCore: (attribute, value of a row with no rig yet, dtype); one
+# table for creating, growing and (after MonitorCore.forget) resetting the rows
+_ROW_STATE = (
+    ("_last", -1, np.int64),           # last seq taken; -1 = none yet
+    ("_n", 0, np.int64),               # samples since the estimates (re)started
+    ("_gap", -1, np.int64),            # samples after the last gap; -1 = none pending
+    ("_bad", False, np.bool_),         # a sample-key message rejected since the last health
+    ("_clamp_warned", False, np.bool_),  # warned of its x1 beyond a chamber's end
+    ("_back_n", 0, np.int64),          # samples in a row below the last seq (a restart?)
+    ("_back_seq", -1, np.int64),       # the last of them
+    ("_back_warned", False, np.bool_),  # warned of a seq going back
+)
+
+_ROW = attrgetter("row")
+_SEQ = _KEY = _FIRST = itemgetter(0)
+_PAYLOAD = itemgetter(1)
+
+
+class MonitorCore(RegularBatch):
+    """The monitor without the bus: ``process(messages) -> [(health_key, payload)]``.
+
+    Parameters
+    ----------
+    namespace : str
+        Key prefix of the contract.
+    sample_rate : float
+        Sample rate of every rig [Hz]; a config with another rate is rejected (bad-value).
+    eval_every : int
+        A health message every this many samples of a rig (10 at 100 Hz = 10 Hz).
+    stagger : bool
+        Spread the rigs' health messages over the window (``monitor.pipeline.eval_phase``: rig
+        ``id`` reports after the samples where its count + phase is a multiple of eval_every)
+        so a fleet's grading and publishing load is even from tick to tick (measured at 1000
+        rigs: all evaluating on one tick cost the monitor ~30 ms in a burst every 100 ms).
+    stale_samples : int or None
+        Samples after a gap during which health says ``stale`` (default eval_every).
+    max_rigs : int
+        Most rigs this core holds (about 5 kB each): a valid sample or config of a further rig
+        id is rejected (``too-many-rigs``), so bogus ids on a shared bus cannot grow the monitor
+        without bound (a review: 20,000 of them added about 100 MB). Shard a larger plant.
+    on_reject : callable or None
+        Called as ``on_reject(reason, key, detail)`` for every rejected message (logging).
+    on_warning : callable or None
+        Called as ``on_warning(rig_id, message)`` when a rig's x1 first goes beyond a chamber's
+        end (the rig constants or x1 are wrong, so its chamber parameters are not to be
+        trusted); again if it does after a config change or a restart (seq back to 0)
+        restarted the rig's estimates.
+    **fleet_kw
+        ``monitor.pipeline.Fleet`` hyperparameters (options, ranges, grade_z, grade_margin).
+    """
+
+    SAMPLE_RATE = 100.0  # [Hz] the default: the bus contract's rigs sample at 100 Hz
+
+    def __init__(self, namespace: str = DEFAULT_NAMESPACE, *, sample_rate: float = SAMPLE_RATE,
+                 eval_every: int = 10, stale_samples: int | None = None, stagger: bool = True,
+                 max_rigs: int = 10000, on_reject: Callable[[str, str, str], None] | None = None,
+                 on_warning: Callable[[str, str], None] | None = None, **fleet_kw):
+        self.namespace = check_namespace(namespace)
+        self.eval_every = int(eval_every)
+        if self.eval_every < 1:
+            raise ValueError(f"eval_every {eval_every!r} must be >= 1")
+        self.stale_samples = self.eval_every if stale_samples is None else int(stale_samples)
+        if self.stale_samples < 0:
+            raise ValueError(f"stale_samples {stale_samples!r} must be >= 0")
+        if isinstance(max_rigs, bool) or not isinstance(max_rigs, int) or max_rigs < 1:
+            raise ValueError(f"max_rigs {max_rigs!r} must be an integer >= 1")
+        self.max_rigs = max_rigs
+        self.fleet = Fleet(sample_rate=sample_rate, eval_every=eval_every, stagger=stagger, **fleet_kw)
+        self.on_reject = on_reject
+        self.on_warning = on_warning
+        self.counters = MonitorCounters()
+        self.rigs: dict[str, _Rig] = {}
+        self.configs: dict[str, RigConfig] = {}   # latest valid config per rig id
+        self.latest: dict[str, bytes] = {}        # latest health payload per rig id
+        self._graded = self.fleet.graded
+        self._health_keys: list[str] = []          # per row
+        self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
+        self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
+        self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
+        self._cur = 0  # index in the current process() call of the message being taken one by one
+        # sequence state per row (arrays, so a batch of regular samples is checked at once)
+        for name, value, dtype in _ROW_STATE:
+            setattr(self, name, np.full(16, value, dtype=dtype))
+        self._clear()
+
+    # -- batch of accepted samples --------------------------------------------------------
+    def _clear(self) -> None:
+        self._chunks: list[tuple[np.ndarray, np.ndarray]] = []  # (rows (m,), t..x5 (m, 6)) in order
+        self._p_rows: list[int] = []    # samples taken one by one, not yet in a chunk
+        self._p_vals: list[tuple] = []
+        self._b_seqs: list[int] = []    # seq of every sample of the batch
+        self._b_msg: list[int] = []     # its message's index in the process() call (output order)
+        self._b_status: dict[int, str] = {}  # batch index -> status, where a window ends abnormally
+
+    def _seal(self) -> None:
+        if self._p_rows:
+            self._chunks.append((np.array(self._p_rows, dtype=np.int64),
+                                 np.array(self._p_vals, dtype=np.float64)[:, 1:]))
+            self._p_rows, self._p_vals = [], []
+
+    def _flush(self, out: list) -> None:
+        self._seal()
+        if not self._chunks:
+            return
+        if len(self._chunks) == 1:
+            rows, vals = self._chunks[0]
+        else:
+            rows = np.concatenate([c[0] for c in self._chunks])
+            vals = np.concatenate([c[1] for c in self._chunks])
+        ev = self.fleet.update(rows, vals[:, 1:])
+        if len(ev):
+            self._health(ev, vals[:, 0], out)
+        self._clear()
+        if self.on_warning is not None:
+            self._warn_clamped()
+
+    def _warn_clamped(self) -> None:
+        clamped = self.fleet.x1_clamped_all() > 0
+        warned = self._clamp_warned[:len(clamped)]
+        new = clamped & ~warned
+        warned |= new
+        for r in np.flatnonzero(new).tolist():
+            self.on_warning(self.fleet.ids[r], X1_CLAMPED_WARNING)
+
+    def _restarted(self, r: int) -> None:
+        """Row r's estimates restarted (config change, seq restart): warn of it afresh."""
+        self._clamp_warned[r] = False
+        self._back_n[r] = 0
+        self._back_warned[r] = False
+
+    def _health(self, ev, t: np.ndarray, out: list) -> None:
+        """Health payloads of a batch's evaluations (``hydromon.engine.health_json``)."""
+        seqs, status, msg = self._b_seqs, self._b_status, self._b_msg
+        sample = ev.sample.tolist()
+        statuses = []
+        # a rig whose x1 went beyond a chamber's end has a wrong config or x1: its input is bad
+        bad_input = (ev.implausible | (ev.clamped > 0)).tolist()  # as of each event: batching-independent
+        for i, level, conv, bad in zip(sample, ev.level.tolist(), ev.converged.tolist(), bad_input):
+            st = status.get(i) if status else None  # bad-input (a rejected message) or stale
+            statuses.append(health_status(bad or st == "bad-input", st == "stale", conv, level))
+        payloads = health_payloads([seqs[i] for i in sample], t[ev.sample], ev.level, ev.confidence, ev.params,
+                                   ev.std_errors, ev.grades, statuses, self._graded)
+        ids, keys, latest = self.fleet.ids, self._health_keys, self.latest
+        for i, r, payload in zip(sample, ev.rig.tolist(), payloads):
+            latest[ids[r]] = payload
+            out.append((msg[i], keys[r], payload))
+        self.counters.health += len(ev)
+
+    def last_seqs(self) -> np.ndarray:
+        """The last seq taken of each rig, by row (-1: none yet); a copy."""
+        return self._last[:len(self.fleet.ids)].copy()
+
+    def stale(self, rig_ids: Iterable[str]) -> list[tuple[str, bytes]]:
+        """The latest health of each of these rigs (silent ones: no sample for a while), re-sent
+        with status ``stale`` (its grade and numbers are those of its last samples); a rig with no
+        health yet, or whose latest is stale already, gets none. ``latest`` says stale from then
+        on, until the rig's next health."""
+        out = []
+        for rig_id in rig_ids:
+            payload = self.latest.get(rig_id)
+            if payload is None:
+                continue
+            h = orjson.loads(payload)
+            if h["status"] == "stale":
+                continue
+            h["status"] = "stale"
+            payload = self.latest[rig_id] = orjson.dumps(h)
+            out.append((self._health_keys[self.rigs[rig_id].row], payload))
+        self.counters.stale_resent += len(out)
+        return out
+
+    # -- input ----------------------------------------------------------------------------
+    def _reject(self, reason: str, key: str, detail: str, rig: _Rig | None = None) -> None:
+        self.counters.rejected[reason] += 1
+        if rig is not None:
+            self._bad[rig.row] = True
+        if self.on_reject is not None:
+            self.on_reject(reason, key, detail)
+
+    def _full(self) -> str:
+        return (f"this monitor holds its limit of {self.max_rigs} rigs (--max-rigs); a new rig id is refused "
+                "(shard a larger plant with --rigs PATTERN)")
+
+    def _rig(self, rig_id: str) -> _Rig:
+        rig = self.rigs.get(rig_id)
+        if rig is None:
+            config = self.configs.get(rig_id)
+            row = self.fleet.add_rig(rig_id, config)  # a forgotten rig's row, or a new one
+            if row >= len(self._last):
+                grow = len(self._last)
+                for name, value, dtype in _ROW_STATE:
+                    setattr(self, name, np.concatenate([getattr(self, name), np.full(grow, value, dtype=dtype)]))
+            rig = self.rigs[rig_id] = _Rig(row, config)
+            if row < len(self._health_keys):
+                self._health_keys[row] = health_key(rig_id, self.namespace)
+            else:
+                self._health_keys.append(health_key(rig_id, self.namespace))
+            self._forgotten.pop(rig_id, None)  # back: its kept config is in use again
+        return rig
+
+    def forget(self, rig_ids: Iterable[str]) -> list[str]:
+        """Forget these rigs (silent ones: the node decides when): their estimates, latest health
+        and seq state go, and their rows are reused by the next new rigs, so a plant whose rig ids
+        come and go never reaches ``max_rigs`` with rigs long gone. A forgotten rig that comes back
+        starts afresh, as a new rig, with the config it last sent (configs are published once and
+        on change); the configs of forgotten rigs are kept up to ``max_rigs`` in all, the oldest
+        dropped first. Call between :meth:`process` calls. Returns the ids forgotten."""
+        done = []
+        for rig_id in rig_ids:
+            rig = self.rigs.pop(rig_id, None)
+            if rig is None:
+                continue
+            r = rig.row
+            self.fleet.remove_rig(rig_id)
+            self.latest.pop(rig_id, None)
+            self._known.pop(sample_key(rig_id, self.namespace), None)
+            for name, value, _ in _ROW_STATE:
+                getattr(self, name)[r] = value
+            if rig_id in self.configs:
+                self._forgotten[rig_id] = None
+            done.append(rig_id)
+        self.counters.forgotten += len(done)
+        return done
+
+    def _config_room(self) -> bool:
+        """Room for one more rig's config: the oldest config of a forgotten rig makes room."""
+        if len(self.configs) < self.max_rigs:
+            return True
+        if self._forgotten:
+            oldest = next(iter(self._forgotten))
+            del self._forgotten[oldest], self.configs[oldest]
+            return True
+        return False
+
+    def _on_config(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
+        try:
+            config = parse_config(decode_json(payload))
+            if abs(config.sample_rate - self.fleet.sample_rate) > 1e-9:
+                raise Rejected("bad-value", f"sample_rate {config.sample_rate} Hz; this monitor runs "
+                                            f"at {self.fleet.sample_rate} Hz")
+        except Rejected as exc:
+            # a rig being graded: its next health says bad-input (it is still graded on the
+            # constants it had; a review found a rejected config left it saying ok)
+            self._reject(exc.reason, key, exc.detail, self.rigs.get(rig_id))
+            return
+        if rig_id not in self.configs and rig_id not in self.rigs and \
+                (len(self.rigs) >= self.max_rigs or not self._config_room()):
+            self._reject("too-many-rigs", key, self._full())
+            return
+        self.counters.configs += 1
+        self.configs[rig_id] = config
+        rig = self.rigs.get(rig_id)
+        if rig is None or rig.config == config or (rig.config is None and config == RigConfig()):
+            if rig is not None:
+                rig.config = config
+            return
+        if self.on_warning is not None:  # a restart of the estimates: the operator should see why
+            old = (rig.config or RigConfig()).model_dump()
+            changed = [k for k, v in config.model_dump().items() if old.get(k) != v]
+            self.on_warning(rig_id, f"config changed ({', '.join(changed)}): its estimates restart with the "
+                                    "new constants (a grade again after about 3 s of samples)")
+        self._flush(out)  # the samples before the change belong to the old constants
+        self.fleet.set_config(rig.row, config)
+        self._restarted(rig.row)
+        rig.config = config
+        self._n[rig.row], self._gap[rig.row] = 0, -1
+        self.counters.config_changes += 1
+
+    def _on_sample(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
+        try:
+            vals = parse_sample(decode_json(payload))
+        except Rejected as exc:
+            self._reject(exc.reason, key, exc.detail, self.rigs.get(rig_id))
+            if rig_id not in self.rigs and len(self._early_bad) < self.max_rigs:  # for the rig's first health
+                self._early_bad.add(rig_id)
+            return
+        if rig_id not in self.rigs and len(self.rigs) >= self.max_rigs:
+            self._reject("too-many-rigs", key, self._full())
+            return
+        rig = self._rig(rig_id)
+        self._known[key] = rig
+        if rig_id in self._early_bad:
+            self._early_bad.discard(rig_id)
+            self._bad[rig.row] = True
+        self._take(rig.row, vals, out)
+
+    def _take(self, r: int, vals: tuple, out: list) -> None:
+        """Sequence checks of a valid sample of the rig in row ``r``, then into the batch."""
+        seq, last, gap = vals[0], int(self._last[r]), int(self._gap[r])
+        verdict, self._back_n[r], self._back_seq[r] = sequence_step(last, int(self._back_n[r]),
+                                                                    int(self._back_seq[r]), seq)
+        if verdict == RESTART:  # the rig restarted (or a replay looped): start afresh
+            if seq != 0 and self.on_warning is not None:
+                self.on_warning(self.fleet.ids[r], f"seq went back from {last} and ran on for {RESTART_RUN} "
+                                                   f"samples (now {seq}): taken as a restart of the rig "
+                                                   "whose first samples were lost")
+            self._flush(out)
+            self.fleet.reset(r)
+            self._restarted(r)
+            self._n[r], gap = 0, -1
+            self.counters.restarts += 1
+        elif verdict == DUPLICATE:
+            self.counters.duplicate += 1
+            return
+        elif verdict == OUT_OF_ORDER:
+            self.counters.out_of_order += 1
+            if not self._back_warned[r] and self.on_warning is not None:
+                self._back_warned[r] = True
+                self.on_warning(self.fleet.ids[r], f"seq {seq} after {last}: dropped (out of order; two "
+                                                   "publishers under one rig id? further ones are counted, "
+                                                   "not logged)")
+            return
+        elif verdict == GAP:
+            self._flush(out)  # the filters restart between the rig's old and new samples
+            self.fleet.reset_signals(r)
+            self.counters.gaps += 1
+            self.counters.missing += seq - last - 1
+            gap = 0
+        elif gap >= 0:
+            gap += 1
+        self._last[r] = seq
+        n = self._n[r] = self._n[r] + 1
+        self.counters.accepted += 1
+        status = None
+        if (n + self.fleet.phase[r]) % self.eval_every == 0:  # this sample ends an evaluation window
+            if self._bad[r]:
+                status = "bad-input"
+            elif 0 <= gap < self.stale_samples:
+                status = "stale"
+            if gap >= self.stale_samples:
+                gap = -1
+            self._bad[r] = False
+        self._gap[r] = gap
+        if status is not None:
+            self._b_status[len(self._b_seqs)] = status  # this sample's index in the batch
+        self._p_rows.append(r)
+        self._p_vals.append(vals)
+        self._b_seqs.append(seq)
+        self._b_msg.append(self._cur)
+
+    def _one(self, key: str, payload: bytes, out: list) -> None:
+        """One message the regular path did not take."""
+        rig = self._known.get(key)
+        if rig is not None:  # the sample key of a rig seen before: validated then
+            try:
+                vals = parse_sample(decode_json(payload))
+            except Rejected as exc:
+                self._reject(exc.reason, key, exc.detail, rig)
+                return
+            self._take(rig.row, vals, out)
+            return
+        parts = split_rig_key(key, self.namespace)
+        if isinstance(parts, str):
+            reason, detail = parts.split(": ", 1)
+            if reason == "bad-rig-id" and key.endswith("/health"):
+                self.counters.ignored += 1  # our own output kind, whatever the id
+            else:
+                self._reject(reason, key, detail)
+            return
+        rig_id, leaf = parts
+        if leaf == "health":
+            self.counters.ignored += 1
+        elif leaf == "sample":
+            self._on_sample(rig_id, key, payload, out)
+        else:
+            self._on_config(rig_id, key, payload, out)
+
+    def process(self, messages: Iterable[tuple[str, bytes]]) -> list[tuple[str, bytes]]:
+        """Consume messages ``(key, payload bytes)`` in order; return the health messages
+        ``(key, JSON bytes)`` they produce, in the order of the samples that ended their windows
+        (what taking every message one by one gives). Never raises on bad input."""
+        out: list = []  # (message index, key, payload)
+        messages = messages if isinstance(messages, list) else list(messages)
+        if messages:
+            if len(messages) == 1:  # a lone message: no batch to gain from
+                self._cur = 0
+                self._one(*messages[0], out)
+            else:
+                for i, key, payload in self._regular(messages):
+                    self._cur = i
+                    self._one(key, payload, out)
+        self._flush(out)
+        out.sort(key=_FIRST)  # the regular samples were taken first: back into arrival order
+        return [(key, payload) for _, key, payload in out]

@@ -1,0 +1,76 @@
+"""Grade one recording as the live monitor would: the pipeline over the whole record.
+
+``evaluate`` returns an :class:`Evaluation` (``hydromon.store.recording.load_recording`` reads
+and validates the record; ``hydromon.report.evaluate`` presents the result).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from hydromon.engine.record import Recording
+from hydromon.engine.status import health_status
+from monitor.grading import Ranges
+from monitor.ident_options import IdentOptions
+from monitor.pipeline import Assessment, Events, Pipeline
+from monitor.refine import Refinement, refine
+
+__all__ = ["Evaluation", "evaluate"]
+
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """The pipeline's assessment of a whole recording (the last evaluation)."""
+
+    recording: Recording
+    assessment: Assessment
+    refined: Refinement | None = None  # the whole-record prediction-error fit, when asked for
+    glitches: dict[str, int] | None = None  # sensor samples the outlier gate replaced, per sensor
+    history: Events | None = None  # every evaluation of the run (sample index into the recording)
+    ranges: Ranges | None = None  # the health ranges graded against
+    x1_clamped: int = 0  # samples whose x1 would have emptied a chamber (config or x1 wrong)
+    options: IdentOptions | None = None  # the identifier's options (None: defaults)
+
+    @property
+    def status(self) -> str:
+        """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``) or x1
+        went beyond a chamber's end,
+        ``ok`` once converged with a grade placed, else ``converging`` (the live monitor's
+        statuses: a converged rig whose grade cannot be placed, level -1, is still converging)."""
+        a = self.assessment
+        return health_status(bool(a.implausible or self.x1_clamped), False, a.converged, a.level)
+
+    @property
+    def memory_s(self) -> float | None:
+        """The estimators' memory [s] it was graded with (``--memory``); None: a growing window."""
+        return (self.options or IdentOptions()).memory_s(self.recording.config.sample_rate)
+
+
+def evaluate(recording: Recording, ranges: Ranges | None = None,
+             options: IdentOptions | None = None, refined: bool = False) -> Evaluation:
+    """Run the monitor pipeline over the whole recording; the last assessment is the result.
+    With ``refined``, also fit the whole model to the record by prediction error
+    (``monitor.refine``), started from the pipeline's estimates."""
+    pipe = Pipeline(config=recording.config, options=options, ranges=ranges)
+    events, assessment = pipe.run(recording.samples, recording.restarts)
+    ref = _refine(recording, options, assessment) if refined else None
+    return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events, pipe.fleet.ranges,
+                      pipe.fleet.x1_clamped(0), options)
+
+
+def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:
+    """The whole-record fit (which sees what the streaming estimates saw: glitches replaced)
+    over the longest stretch without a gap (the fit integrates the model from sample to sample)."""
+    lo, hi = recording.longest_stretch()
+    try:
+        ref = refine(recording.samples[lo:hi], recording.config, assessment.params, options=options)
+    except ValueError as exc:  # too short a stretch: the streaming evaluation still stands
+        return Refinement(dict(assessment.params), dict.fromkeys(assessment.params, math.inf), False,
+                          f"not run: {exc}")
+    if recording.restarts:
+        ref = replace(ref, message=f"{ref.message} (samples {lo}..{hi - 1}, the longest stretch without a gap)")
+    return ref
+
+

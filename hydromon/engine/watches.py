@@ -1,0 +1,160 @@
+"""What the monitor node watches besides its input, by a clock the caller passes in.
+
+:class:`RateLimitedLog` keeps the rejection log readable under a flood of bad messages;
+:class:`SilenceWatch` finds rigs that went silent (their latest health re-sent ``stale``, and
+forgotten after a longer silence); :class:`BacklogWatch` says when the node falls behind its
+input. No I/O but logging, no clock of their own: the node (``hydromon.bus.monitor``) calls them.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from hydromon.engine.core import MonitorCore
+
+__all__ = ["RateLimitedLog", "SilenceWatch", "BacklogWatch"]
+
+log = logging.getLogger("hydromon.bus.monitor")  # the node's log: these lines are its
+
+
+class RateLimitedLog:
+    """``__call__(reason, key, detail)`` logs the first rejection of each reason at once,
+    then at most one line per reason every ``interval`` [s] with how many were suppressed.
+
+    ``flush()`` reports the suppressed counts that are due even when no further rejection
+    comes (the node calls it from its loop, and with ``final=True`` when it stops): without
+    it, the last burst of a reason would never be counted in the log.
+    """
+
+    def __init__(self, logger: logging.Logger = log, interval: float = 5.0, clock=time.monotonic):
+        self.logger, self.interval, self.clock = logger, float(interval), clock
+        self._last: dict[str, float] = {}
+        self._suppressed: dict[str, int] = {}
+
+    def __call__(self, reason: str, key: str, detail: str) -> None:
+        now = self.clock()
+        last = self._last.get(reason)
+        if last is not None and now - last < self.interval:
+            self._suppressed[reason] = self._suppressed.get(reason, 0) + 1
+            return
+        n = self._suppressed.pop(reason, 0)
+        self._last[reason] = now
+        more = f" (+{n} more since the last report)" if n else ""
+        self.logger.warning("rejected %s on %s: %s%s", reason, key[:200], detail[:200], more)
+
+    def flush(self, final: bool = False) -> None:
+        """Log each reason's suppressed count whose interval has passed (every one if ``final``)."""
+        now = self.clock()
+        for reason in list(self._suppressed):
+            if final or now - self._last[reason] >= self.interval:
+                n = self._suppressed.pop(reason)
+                self._last[reason] = now
+                self.logger.warning("rejected %s: %d more since the last report", reason, n)
+
+
+class SilenceWatch:
+    """Rigs that have sent no sample for a while, by the node's clock ``now`` [s].
+
+    ``check(core, now)`` returns the latest health of rigs silent for ``after`` [s] re-sent as
+    ``stale`` (``MonitorCore.stale``), once per silence (None: never). ``forget_due(core, now)``
+    returns the ids of rigs silent for ``forget_after`` [s] (None: never), for
+    ``MonitorCore.forget``.
+
+    Health is computed from samples, so a rig that stops publishing (its PC off, its cable out)
+    would otherwise keep its last ``ok`` for good: on the health query and on every dashboard
+    that shows the latest message. Each call compares each rig's last seq with the one it had at
+    the previous call (one array comparison for the whole fleet).
+    """
+
+    def __init__(self, after: float | None, forget_after: float | None = None):
+        for name, v in (("stale after", after), ("forget after", forget_after)):
+            if v is not None and not v > 0:
+                raise ValueError(f"{name} {v!r} s must be > 0")
+        if after is not None and forget_after is not None and forget_after <= after:
+            raise ValueError(f"forget after {forget_after!r} s must be longer than stale after {after!r} s")
+        self.after = None if after is None else float(after)
+        self.forget_after = None if forget_after is None else float(forget_after)
+        self._seqs = np.empty(0, dtype=np.int64)
+        self._since = np.empty(0)
+        self._told = np.empty(0, dtype=np.bool_)
+
+    def _observe(self, core: MonitorCore, now: float) -> None:
+        seqs = core.last_seqs()
+        new = len(seqs) - len(self._seqs)
+        if new > 0:  # rigs seen since the last check: silent from now at the earliest
+            self._seqs = np.concatenate([self._seqs, np.full(new, -2, dtype=np.int64)])
+            self._since = np.concatenate([self._since, np.full(new, now)])
+            self._told = np.concatenate([self._told, np.zeros(new, dtype=np.bool_)])
+        moved = seqs != self._seqs  # a forgotten rig's row (seq back to -1) counts as moved
+        self._since[moved], self._told[moved], self._seqs = now, False, seqs
+
+    def check(self, core: MonitorCore, now: float) -> list[tuple[str, bytes]]:
+        self._observe(core, now)
+        if self.after is None:
+            return []
+        due = ~self._told & (now - self._since >= self.after)
+        if not due.any():
+            return []
+        self._told |= due
+        ids = core.fleet.ids
+        return core.stale([ids[r] for r in np.flatnonzero(due).tolist()])
+
+    def forget_due(self, core: MonitorCore, now: float) -> list[str]:
+        self._observe(core, now)
+        if self.forget_after is None:
+            return []
+        ids = core.fleet.ids
+        return [ids[r] for r in np.flatnonzero(now - self._since >= self.forget_after).tolist() if ids[r]]
+
+
+class BacklogWatch:
+    """Says when the node falls behind its input, and when it has caught up.
+
+    ``observe(n, now)`` takes the size of each drained batch and the node's clock ``now`` [s];
+    it returns a line to log, or None. A batch drained full (``max_batch`` messages) means more
+    than a batch was queued; batches full for ``after`` [s] in a row mean arrivals outpace
+    processing, so every health message comes later than the one before: the node says so once
+    (with the rate it takes messages at, so an operator can size shards), and once more when a
+    batch is no longer full. A start-up burst (routes coming up, a queue that filled while the
+    kernels loaded) drains within that time and says nothing. Without it, an overloaded
+    monitor's only symptom was health arriving ever later, with nothing in its log.
+    """
+
+    def __init__(self, max_batch: int, after: float = 2.0):
+        if max_batch < 1 or not after > 0:
+            raise ValueError(f"max batch {max_batch!r} must be >= 1 and after {after!r} s > 0")
+        self.max_batch, self.after = int(max_batch), float(after)
+        self._since: float | None = None  # when the current run of full batches began
+        self._taken = 0                     # messages taken in it
+        self._told = False
+        self.episodes = 0                   # runs of full batches reported
+        self.seconds = 0.0                  # their total length [s] (the current one once it ends)
+
+    def observe(self, n: int, now: float) -> str | None:
+        if n >= self.max_batch:
+            if self._since is None:
+                self._since, self._taken, self._told = now, 0, False
+            self._taken += n
+            behind = now - self._since
+            if not self._told and behind >= self.after:
+                self._told = True
+                self.episodes += 1
+                return (f"monitor: behind its input for {behind:.1f} s: every batch drained full ({self.max_batch} "
+                        f"messages) while it took {self._taken / behind:.0f} a second, so health comes later "
+                        "and later; too many rigs for this process (shard them over monitors with --rigs PATTERN)")
+            return None
+        return self._end(now)
+
+    def _end(self, now: float, how: str = "caught up") -> str | None:
+        since, told, self._since = self._since, self._told, None
+        if since is None or not told:
+            return None
+        self.seconds += now - since
+        return f"monitor: {how} after {now - since:.1f} s behind its input"
+
+    def close(self, now: float) -> str | None:
+        """The line for a node that stops while behind (None if it is not)."""
+        return self._end(now, "stopped while still behind")

@@ -1,0 +1,127 @@
+"""An evaluated recording as the ``evaluate --json`` document and as a table for a person."""
+
+from __future__ import annotations
+
+import math
+
+from hydromon.contract import PARAM_NAMES, PARAM_UNITS
+from hydromon.engine.evaluate import Evaluation
+from hydromon.store.sampling import RATE_TOL
+from monitor.ident_options import IdentOptions
+from monitor.identify import V_MIN
+from monitor.refine import REFINED
+
+__all__ = ["to_json", "render"]
+
+
+def _num(v: float):
+    return float(v) if math.isfinite(v) else None
+
+
+def to_json(ev: Evaluation) -> dict:
+    """The ``evaluate --json`` document: DESIGN.md section 6's keys (plus ``refined`` when the
+    refinement ran); non-finite numbers (an unidentified parameter's standard error is inf)
+    become null."""
+    a = ev.assessment
+    out = {
+        "grade": a.grade,
+        "level": a.level if a.level >= 0 else None,
+        "confidence": float(a.confidence),
+        "status": ev.status,
+        "params": {k: _num(a.params[k]) for k in PARAM_NAMES},
+        "std_errors": {k: _num(a.std_errors[k]) for k in PARAM_NAMES},
+    }
+    if ev.glitches is not None:  # added keys
+        out["glitches_replaced"] = ev.glitches
+    out["x1_outside_chambers"] = ev.x1_clamped
+    out["implausible"] = list(a.implausible)  # impossible estimates: the grade is withheld
+    rec = ev.recording
+    out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected,
+                   "duplicate_samples": rec.duplicate, "out_of_order_samples": rec.out_of_order}
+    out["timestamp_jitter"] = {"intervals": rec.jitter, "max_s": rec.jitter_max}
+    out["config_changes"] = {"count": rec.config_changes, "skipped_samples": rec.skipped}
+    out["memory_s"] = ev.memory_s  # None: a growing window
+    if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
+        r = ev.refined
+        out["refined"] = {"ok": r.ok, "message": r.message,
+                          "params": {k: _num(r.params[k]) for k in REFINED},
+                          "std_errors": {k: _num(r.std_errors[k]) for k in REFINED},
+                          "sensor_noise": r.noise}
+    return out
+
+
+def render(ev: Evaluation, console=None) -> None:
+    """Print the evaluation as a readable table (rich)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = console or Console()
+    a = ev.assessment
+    r = ev.recording
+    console.print(f"[bold]{r.source}[/bold]  rig {r.rig}: {len(r.samples)} samples, {r.duration:g} s")
+    level = "unknown" if a.level < 0 else str(a.level)
+    console.print(f"grade [bold]{a.grade}[/bold]  level {level}  confidence {a.confidence:.3f}  "
+                  f"status {ev.status}")
+    if ev.memory_s is not None:  # the default, a growing window, needs no line
+        console.print(f"estimators' memory {ev.memory_s:g} s (--memory): data older than that fades")
+    t = Table(show_header=True, header_style="bold")
+    ref = ev.refined
+    cols = [("parameter", "left"), ("value", "right"), ("std error", "right")]
+    if ref is not None:
+        cols += [("refined", "right"), ("std error ", "right")]
+    for col, just in cols + [("unit", "left"), ("grade", "left")]:
+        t.add_column(col, justify=just)
+    grades = a.param_grades
+    for k in PARAM_NAMES:
+        row = [k, f"{a.params[k]:.5g}", f"{a.std_errors[k]:.3g}"]
+        if ref is not None:
+            row += [f"{ref.params[k]:.5g}", f"{ref.std_errors[k]:.3g}"] if k in REFINED else ["", ""]
+        t.add_row(*row, PARAM_UNITS[k], grades.get(k, ""))
+    console.print(t)
+    graded = ev.ranges.params if ev.ranges is not None else {}
+    if not a.converged:
+        # the reason a person needs here is the record's length, not the valve's excitation
+        need = (ev.options or IdentOptions()).min_rows
+        console.print(f"[yellow]not converged: the chamber and valve equations need {need} rows each before a "
+                      f"grade (about {need / r.config.sample_rate:g} s of samples after the filters' warm-up); "
+                      f"this record has {len(r.samples)} samples: give a longer one[/yellow]")
+    elif "K_sv" in graded and "K_sv_omega_sv2" not in graded:
+        w2, s = a.params["omega_sv2"], a.std_errors["omega_sv2"]
+        rel = s / abs(w2) if math.isfinite(s) and math.isfinite(w2) and w2 else math.inf
+        why = ("" if rel < 0.05 else  # the reason matters where it shows: an unexcited valve
+               f": it needs the valve's dynamics excited, which a record that starts mid-run on a smooth command "
+               f"lacks (here omega^2 {'has no SE' if math.isinf(rel) else f'+-{100 * rel:.2g} %'})")
+        console.print(f"[dim]the valve is graded on its static gain K_sv; K_sv omega^2 is reported, not graded{why}; "
+                      "--ranges paper grades it as Table 3 prints it[/dim]")
+    if r.config_changes:
+        console.print(f"[yellow]the rig's config changed {r.config_changes} time(s): evaluated the samples after the "
+                      f"last change (sample {r.skipped}, t = {r.t[0]:g} s) with its constants, as the live monitor "
+                      f"restarts a rig's estimates there; the {r.skipped} sample(s) before it were skipped "
+                      "(hydromon replay --direct grades every stretch)[/yellow]")
+    if r.restarts or r.rejected or r.duplicate or r.out_of_order:
+        dropped = (f", {r.duplicate} duplicate and {r.out_of_order} out-of-order sample(s) dropped (seq not above "
+                   "the last one taken)" if r.duplicate or r.out_of_order else "")
+        console.print(f"[yellow]{len(r.restarts)} gap(s), {r.missing} sample(s) missing, {r.rejected} invalid "
+                      f"sample(s) skipped{dropped}: the filters restarted after each gap, the estimates carried "
+                      "on[/yellow]")
+    if r.jitter:
+        console.print(f"[yellow]{r.jitter} sample interval(s) with time stamps off their seq step by more than "
+                      f"{100 * RATE_TOL:g} % of a period (largest {1e3 * r.jitter_max:.3g} ms): graded by seq, as "
+                      "the live monitor does[/yellow]")
+    if a.implausible:
+        what = ", ".join(f"{k} = {a.params[k]:.3g} (SE {a.std_errors[k]:.2g})" for k in a.implausible)
+        console.print(f"[red]not graded: physically impossible estimates ({what}; each must be positive). The "
+                      "record does not obey the model: check the units (SI: m, Pa, V), the signs and zeros of x1, "
+                      "x3, x4, x5 and ug, and the rig constants[/red]")
+    if ev.x1_clamped:
+        c = r.config
+        lo, hi = -(1 - V_MIN) * c.V10 / c.A1, (1 - V_MIN) * c.V20 / c.A2
+        console.print(f"[red]{ev.x1_clamped} sample(s) put x1 at a chamber's end (x1 < {lo:.4g} m or > {hi:.4g} m "
+                      "leaves a chamber under 1 % of its volume V_i0): the rig constants or x1's zero, sign or "
+                      "unit are wrong, and the chamber parameters are not to be trusted[/red]")
+    if ev.glitches and any(ev.glitches.values()):
+        what = ", ".join(f"{n} {k}" for k, n in ev.glitches.items() if n)
+        console.print(f"[yellow]sensor glitches replaced by their neighbours' mean: {what}[/yellow]")
+    if ref is not None:
+        console.print(f"refined: whole-record prediction-error fit, {'ok' if ref.ok else 'FAILED'}: {ref.message}; "
+                      "the grade is the streaming pipeline's")

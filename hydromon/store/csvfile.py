@@ -1,0 +1,107 @@
+"""CSV records of one rig: header ``t,ug,x1,x3,x4,x5`` (any order, extra columns ignored), SI units.
+
+:func:`read_csv` validates as it reads (every error names the file and line); :func:`csv_text`
+writes what it reads back exactly.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hydromon.contract import SAMPLE_COLUMNS, SAMPLE_LIMITS
+
+__all__ = ["read_csv", "csv_text"]
+
+
+def read_csv(src, name: str = "<csv>") -> np.ndarray:
+    """Parse a CSV with header columns t,ug,x1,x3,x4,x5 (any order, extra columns ignored).
+
+    src is a path or a text stream. Returns (N, 6) float64 in SAMPLE_COLUMNS order. Raises
+    ValueError naming the line of the first bad value (header = line 1); a missing file raises
+    FileNotFoundError naming it. A UTF-8 byte order mark before the header is allowed.
+    """
+    if isinstance(src, (str, Path)):
+        text = _read_text(Path(src))
+        try:
+            return read_csv(io.StringIO(text, newline=""), str(src))
+        except ValueError as exc:
+            last = text.count("\n") + 1  # the line number of an unterminated last line
+            if text and not text.endswith(("\n", "\r")) and f" line {last}:" in str(exc):
+                raise ValueError(f"{exc}; it is the last line and has no line end: was the file cut short "
+                                 "(a logger stopped mid-write)? Remove that line") from None
+            raise
+    reader = csv.reader(src)
+    try:
+        first = next(reader)
+    except StopIteration:
+        raise ValueError(f"{name}: empty file; expected a header {','.join(SAMPLE_COLUMNS)}") from None
+    if first:  # Excel's "CSV UTF-8" starts with a byte order mark
+        first[0] = first[0].removeprefix("\ufeff")
+    header = [h.strip() for h in first]
+    missing = [c for c in SAMPLE_COLUMNS if c not in header]
+    if missing:
+        raise ValueError(f"{name} line 1: header {','.join(header)!r} lacks column(s) "
+                         f"{', '.join(missing)}; expected {','.join(SAMPLE_COLUMNS)} (SI units)")
+    dup = sorted({c for c in SAMPLE_COLUMNS if header.count(c) > 1})
+    if dup:
+        raise ValueError(f"{name} line 1: column(s) {', '.join(dup)} appear more than once")
+    cols = [header.index(c) for c in SAMPLE_COLUMNS]
+    rows = []
+    blank = None  # the first blank line seen: an error only if a row follows it
+    for row in reader:
+        line = reader.line_num
+        if not row or all(not c.strip() for c in row):
+            blank = blank or line
+            continue
+        if blank is not None:
+            raise ValueError(f"{name} line {blank}: empty line")
+        if len(row) != len(header):
+            raise ValueError(f"{name} line {line}: {len(row)} fields, the header has {len(header)}")
+        vals = []
+        for c, j in zip(SAMPLE_COLUMNS, cols):
+            try:
+                v = float(row[j])
+            except ValueError:
+                raise ValueError(f"{name} line {line}: {c} = {row[j]!r} is not a number") from None
+            if not math.isfinite(v):
+                raise ValueError(f"{name} line {line}: {c} = {row[j]!r} is not finite")
+            if abs(v) > SAMPLE_LIMITS.get(c, math.inf):
+                raise ValueError(f"{name} line {line}: {c} = {row[j]!r} is beyond the contract's limit "
+                                 f"|{c}| <= {SAMPLE_LIMITS[c]:g} (SI units?)")
+            vals.append(v)
+        rows.append(vals)
+    if not rows:
+        raise ValueError(f"{name}: no samples after the header")
+    return np.array(rows, dtype=np.float64)
+
+
+def _read_text(path: Path) -> str:
+    """A CSV file's text; every error names the file (and the line of a byte that is not UTF-8)."""
+    name = str(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{name}: no such file") from None
+    except OSError as exc:
+        raise ValueError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        return data.decode("utf-8")  # not utf-8-sig: its error offsets leave out the mark; read_csv drops it
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ValueError(f"{name} line {line}: byte {data[exc.start]:#04x} is not UTF-8 text; expected a CSV "
+                         f"with the header {','.join(SAMPLE_COLUMNS)} (is it a binary file?)") from None
+
+
+def csv_text(t: np.ndarray, samples: np.ndarray) -> str:
+    """CSV text that :func:`read_csv` reads back exactly: header SAMPLE_COLUMNS, t [s] (N,) and
+    samples (N, 5) [SI] at full precision."""
+    out = io.StringIO()
+    out.write(",".join(SAMPLE_COLUMNS) + "\n")
+    for ti, row in zip(t, samples):
+        out.write(",".join(repr(float(v)) for v in (ti, *row)) + "\n")
+    return out.getvalue()

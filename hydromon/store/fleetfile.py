@@ -1,0 +1,313 @@
+"""Fleet files: which simulated rigs a ``hydromon sim`` node runs (JSON or TOML).
+
+A fleet file is a table of shared settings and a list of rigs, e.g. in TOML::
+
+    seed = 7                         # base of the per-rig noise seeds
+    [config]                         # RigConfig fields shared by all rigs (SI), optional
+    p_s = 12e6
+    [[rigs]]
+    id = "press-1"
+    severity = 0.35                  # plant_sim.degradation.degrade, 0 new .. 1 fault
+    profile = "paper-var:period=10"  # plant_sim.profiles.parse_profile
+    noise = "realistic"              # none | realistic | stress | pct:F
+    effects = { stribeck_friction = 40.0, sensor_delay = 2 }
+    [[rigs]]
+    id = "press-2"
+    table4 = 3                       # the paper's Table 4 group 1..5 as the plant
+    params = { f_c = 30.0 }          # PlantParams overrides, applied last
+
+Effects are ``NAME = MAGNITUDE`` with the names of ``plant_sim.params.EFFECT_NAMES``
+(:data:`EFFECT_FIELDS` gives the field and unit each sets); ``sensor_delay_loop = true``
+puts the sensor delay inside the control loop. Everything is validated here, at the edge:
+a bad value raises ValueError naming it.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from hydromon.contract import valid_rig_id
+from plant_sim.degradation import degrade, table4_group
+from plant_sim.live import PlantFleet
+from plant_sim.noise import noise_model
+from hydromon.contract import RigConfig
+from plant_sim.params import EFFECT_NAMES, Effects, PlantParams
+from plant_sim.profiles import parse_profile
+from plant_sim.validation import brief_error
+
+__all__ = [
+    "EFFECT_FIELDS", "RigSpec", "FleetSpec", "parse_effect", "load_fleet", "default_fleet",
+    "spread_fleet", "rig_seeds", "brief_error",
+]
+
+EFFECT_FIELDS = {
+    "stribeck_friction": ("stribeck_F_s", "N"),
+    "valve_saturation": ("x_max", "m"),
+    "valve_dead_band": ("dead_band", "m"),
+    "supply_pressure_sag": ("supply_sag", "Pa/(m^3/s)"),
+    "entrained_air": ("air_fraction", "-"),
+    "sensor_delay": ("sensor_delay", "samples"),
+    "load_offset": ("load_offset", "N"),
+}
+"""Effect name -> (``plant_sim.params.Effects`` field it sets, unit of the magnitude)."""
+assert set(EFFECT_FIELDS) == set(EFFECT_NAMES)
+
+
+def parse_effect(text: str) -> tuple[str, float]:
+    """``"NAME=MAGNITUDE"`` -> ``(NAME, MAGNITUDE)``, e.g. ``"stribeck_friction=40"``."""
+    name, eq, value = text.partition("=")
+    name = name.strip()
+    if not eq:
+        raise ValueError(f"effect {text!r}: expected NAME=MAGNITUDE")
+    _check_effect_name(name)
+    try:
+        return name, float(value)
+    except ValueError:
+        raise ValueError(f"effect {name!r}: magnitude {value.strip()!r} is not a number") from None
+
+
+def _check_effect_name(name: str) -> None:
+    if name not in EFFECT_FIELDS:
+        raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
+
+
+class RigSpec(BaseModel):
+    """One simulated rig.
+
+    Attributes
+    ----------
+    id : str
+        Rig id, 1-64 chars of ``[A-Za-z0-9_-]`` (used in keys and file names).
+    severity : float, optional
+        Degradation in [0, 1] (``plant_sim.degradation.degrade``); exclusive with table4.
+    table4 : int, optional
+        The paper's Table 4 group 1..5 as the plant.
+    params : dict
+        ``PlantParams`` fields overriding the plant (SI), applied last.
+    profile : str
+        Command profile spec (``plant_sim.profiles.parse_profile``).
+    seed : int, optional
+        Noise seed; default derived from the fleet seed and the rig's position.
+    noise : str
+        Noise model: none, realistic, stress or pct:F.
+    effects : dict
+        Effect name -> magnitude in the unit of :data:`EFFECT_FIELDS`.
+    sensor_delay_loop : bool
+        The sensor delay acts inside the control loop too.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    id: str
+    severity: float | None = None
+    table4: int | None = None
+    params: dict[str, float] = Field(default_factory=dict)
+    profile: str = "paper-var"
+    seed: int | None = None
+    noise: str = "none"
+    effects: dict[str, float] = Field(default_factory=dict)
+    sensor_delay_loop: bool = False
+
+    @field_validator("id")
+    @classmethod
+    def _id(cls, v: str) -> str:
+        if not valid_rig_id(v):
+            raise ValueError(f"rig id {v!r} must be 1-64 chars of [A-Za-z0-9_-]")
+        return v
+
+    @field_validator("severity")
+    @classmethod
+    def _severity(cls, v):
+        if v is not None and not (0.0 <= v <= 1.0):
+            raise ValueError(f"severity {v!r} must lie in [0, 1]")
+        return v
+
+    @field_validator("table4")
+    @classmethod
+    def _table4(cls, v):
+        if v is not None and v not in range(1, 6):
+            raise ValueError(f"table4 group {v!r} must be 1..5")
+        return v
+
+    @field_validator("params")
+    @classmethod
+    def _params(cls, v):
+        unknown = sorted(set(v) - set(PlantParams.model_fields))
+        if unknown:
+            raise ValueError(f"unknown plant parameter(s) {', '.join(map(repr, unknown))}; "
+                             f"choose from {', '.join(PlantParams.model_fields)}")
+        return v
+
+    @field_validator("effects", mode="before")
+    @classmethod
+    def _effects(cls, v):
+        if isinstance(v, (list, tuple)):  # ["NAME=MAG", ...] as on the command line
+            return dict(parse_effect(item) for item in v)
+        if isinstance(v, dict):
+            for name in v:
+                _check_effect_name(name)
+        return v
+
+    @field_validator("profile")
+    @classmethod
+    def _profile(cls, v):
+        parse_profile(v)  # raises ValueError naming the bad spec
+        return v
+
+    @field_validator("noise")
+    @classmethod
+    def _noise(cls, v):
+        noise_model(v)
+        return v
+
+    @model_validator(mode="after")
+    def _check(self) -> "RigSpec":
+        if self.severity is not None and self.table4 is not None:
+            raise ValueError(f"rig {self.id!r}: give severity or table4, not both")
+        self.plant()
+        self.effects_model()
+        return self
+
+    def plant(self) -> PlantParams:
+        """The rig's plant: degraded to severity, or a Table 4 group, or Table 1; then params."""
+        if self.table4 is not None:
+            base = table4_group(self.table4)
+        elif self.severity is not None:
+            base = degrade(self.severity)
+        else:
+            base = PlantParams()
+        try:
+            return PlantParams(**{**base.model_dump(), **self.params})
+        except ValidationError as exc:
+            raise ValueError(f"rig {self.id!r} params: {brief_error(exc)}") from None
+
+    def effects_model(self) -> Effects:
+        """The rig's ``plant_sim.params.Effects``."""
+        fields: dict = {}
+        for name, mag in self.effects.items():
+            field, _unit = EFFECT_FIELDS[name]
+            if field == "sensor_delay":
+                if mag != int(mag) or mag < 0:
+                    raise ValueError(f"rig {self.id!r}: sensor_delay {mag!r} must be a whole number of samples >= 0")
+                mag = int(mag)
+            fields[field] = mag
+        fields["sensor_delay_in_loop"] = self.sensor_delay_loop
+        try:
+            return Effects(**fields)
+        except ValidationError as exc:
+            raise ValueError(f"rig {self.id!r} effects {self.effects}: {brief_error(exc)}") from None
+
+
+def rig_seeds(seed: int, n: int) -> list[int]:
+    """n distinct, deterministic noise seeds derived from one base seed."""
+    return [int(s) for s in np.random.SeedSequence(seed).generate_state(n)]
+
+
+class FleetSpec(BaseModel):
+    """A fleet: shared rig constants, a base seed and the rigs (ids unique)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    config: RigConfig = Field(default_factory=RigConfig)
+    seed: int = 0
+    rigs: list[RigSpec] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _unique(self) -> "FleetSpec":
+        seen = set()
+        for r in self.rigs:
+            if r.id in seen:
+                raise ValueError(f"rig id {r.id!r} appears twice")
+            seen.add(r.id)
+        return self
+
+    @property
+    def ids(self) -> list[str]:
+        return [r.id for r in self.rigs]
+
+    def seeds(self) -> list[int]:
+        """Each rig's noise seed: its own, else derived from the fleet seed."""
+        derived = rig_seeds(self.seed, len(self.rigs))
+        return [r.seed if r.seed is not None else d for r, d in zip(self.rigs, derived)]
+
+    def with_overrides(self, **fields) -> "FleetSpec":
+        """The same fleet with the given RigSpec fields set on every rig (None = keep)."""
+        fields = {k: v for k, v in fields.items() if v is not None}
+        if not fields:
+            return self
+        if "severity" in fields:  # a severity replaces a Table 4 plant
+            fields.setdefault("table4", None)
+        rigs = [RigSpec(**{**r.model_dump(), **fields}) for r in self.rigs]
+        return FleetSpec(config=self.config, seed=self.seed, rigs=rigs)
+
+    def build(self, substeps: int | None = None) -> PlantFleet:
+        """The ``PlantFleet`` simulating these rigs."""
+        kw = {} if substeps is None else {"substeps": substeps}
+        return PlantFleet(
+            self.config,
+            [r.plant() for r in self.rigs],
+            [parse_profile(r.profile) for r in self.rigs],
+            [r.effects_model() for r in self.rigs],
+            [noise_model(r.noise, self.config) for r in self.rigs],
+            self.seeds(),
+            **kw,
+        )
+
+
+def load_fleet(path: str | Path) -> FleetSpec:
+    """Read a fleet file (``.toml``, else JSON); ValueError names what is wrong."""
+    path = Path(path)
+    text = path.read_text()
+    try:
+        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not a TOML fleet file ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not a JSON fleet file ({exc}); a fleet file is .toml or .json") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: a fleet file is a table with a 'rigs' list")
+    try:
+        return FleetSpec.model_validate(data)
+    except ValidationError as exc:
+        raise ValueError(f"{path}: {brief_error(exc)}") from None
+
+
+def default_fleet(profile: str = "paper-var", noise: str = "none", seed: int = 0) -> FleetSpec:
+    """The paper's five Table 4 rigs ``table4-g1`` .. ``table4-g5`` under ``profile``."""
+    return FleetSpec(seed=seed, rigs=[RigSpec(id=f"table4-g{g}", table4=g, profile=profile, noise=noise)
+                                      for g in range(1, 6)])
+
+
+def spread_fleet(n: int, *, seed: int | None = None, profile: str = "paper-var", noise: str = "none",
+                 prefix: str = "rig") -> FleetSpec:
+    """n rigs ``rig-0000`` ..: severities evenly over [0, 1], or uniform random with ``seed``."""
+    if n < 1:
+        raise ValueError(f"--rigs {n!r}: need at least one rig")
+    if seed is None:
+        sev = np.linspace(0.0, 1.0, n) if n > 1 else np.array([0.0])
+    else:
+        sev = np.random.default_rng(seed).uniform(0.0, 1.0, n)
+    width = max(4, len(str(n - 1)))
+    rigs = [RigSpec(id=f"{prefix}-{i:0{width}d}", severity=float(s), profile=profile, noise=noise)
+            for i, s in enumerate(sev)]
+    return FleetSpec(seed=seed or 0, rigs=rigs)
+
+
+def true_grade(rig: RigSpec) -> str | None:
+    """The grade a simulated rig really has: its Table 4 group's paper grade, the grade of
+    its severity, or None when unknown (plant overrides, or an undegraded Table 1 plant with
+    overrides)."""
+    from plant_sim.degradation import TABLE4_PAPER_GRADES, grade_of_severity
+
+    if rig.params:
+        return None
+    if rig.table4 is not None:
+        return TABLE4_PAPER_GRADES[rig.table4]
+    if rig.severity is not None:
+        return grade_of_severity(rig.severity)
+    return "health"

@@ -1,0 +1,144 @@
+"""One rig's record for ``evaluate`` and ``audit``: a CSV (t,ug,x1,x3,x4,x5 in SI) or an MCAP file,
+read and validated as the live monitor would take it (the CSV/MCAP edge).
+
+``load_recording`` reads and validates. A CSV: header, finite numbers, strictly increasing t,
+sampling at the rig's rate within 1 % (a gap of whole sample periods is allowed and, as on
+the bus, restarts the filters). An MCAP is taken as the live monitor takes it
+(``hydromon.engine.sequence``): by ``seq``, not by time stamp (time stamps off the seq's grid are
+counted, not refused); invalid samples, duplicate and out-of-order seqs are skipped and
+counted; a seq jump is a gap; a rig config change restarts the estimates, so only the
+samples after the last change are evaluated (the skipped ones are counted); a restart
+(seq back to 0) is refused with a hint.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from hydromon.contract import RigConfig
+from hydromon.engine.sequence import DUPLICATE, GAP, OUT_OF_ORDER, RESTART, TAKEN, sequence_verdicts
+from hydromon.engine.record import Recording
+from hydromon.store.csvfile import read_csv
+from hydromon.store.sampling import check_sampling, time_jitter
+
+__all__ = ["Recording", "load_recording"]
+
+
+def _after_last_change(messages: list[tuple[int, RigConfig]], stored: list[RigConfig], n: int,
+                       name: str) -> tuple[RigConfig, int, int]:
+    """``(config, first, changes)``: the rig constants of the samples from index ``first`` on,
+    after the last of ``changes`` config changes among ``n`` samples.
+
+    ``messages`` are the rig's config messages as ``(index of the next sample, config)``;
+    ``stored`` its configs stored as metadata (the first is the one in force when the file
+    began). As the live monitor does, a config that differs from the one in force after the
+    rig's first sample restarts its estimates: the samples before it were taken with other
+    constants, so they are not evaluated with these.
+    """
+    if not messages and len(set(map(_config_key, stored))) > 1:
+        raise ValueError(f"{name}: {len(stored)} different configs stored for the rig as metadata, but no "
+                         "config messages: cannot tell which samples each applies to")
+    # a part the recorder opened carries the rigs' configs as messages ahead of its first one; a
+    # config stored as metadata only (an older recording) is the one in force from its start; else
+    # the monitor's defaults, and the first config message after a sample is a change (the live
+    # monitor had none before it either)
+    current = stored[0] if stored and not messages else RigConfig()
+    # a monitor runs at one sample rate and rejects configs of another (MonitorCore._on_config):
+    # the record's rate is its first config's
+    rate = (messages[0][1] if messages else current).sample_rate
+    first = changes = 0
+    for i, config in messages:
+        if i >= n:  # after the last sample: no sample was taken with it
+            break
+        if config.sample_rate != rate:
+            continue
+        if i > 0 and config != current:
+            first, changes = i, changes + 1
+        current = config
+    return current, first, changes
+
+
+def _config_key(config: RigConfig) -> tuple:
+    return tuple(config.model_dump().items())
+
+
+def _named(name: str, exc: Exception) -> str:
+    """The error's message, prefixed by the file's name unless it starts with it already."""
+    msg = str(exc)
+    return msg if msg.startswith(name) else f"{name}: {msg}"
+
+
+def load_recording(path: str | Path, rig: str | None = None, config: RigConfig | None = None) -> Recording:
+    """Read and validate one rig's samples from ``.csv`` or ``.mcap``.
+
+    ``rig`` picks the rig of a multi-rig MCAP (a CSV holds one rig, called ``csv``). The rig
+    constants are ``config`` if given (for the whole record), else the recording's (MCAP:
+    those after the last config change, and only the samples after it are kept), else the
+    defaults (DESIGN.md section 5).
+    """
+    path = Path(path)
+    name = str(path)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        if rig is not None:
+            raise ValueError("--rig selects a rig of an MCAP recording; a CSV holds one rig")
+        data = read_csv(path)
+        config = config or RigConfig()
+        restarts, missing = check_sampling(data[:, 0], config.sample_rate, lambda i: f"{name} line {i + 2}")
+        return Recording("csv", data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
+                         tuple(restarts), missing)
+    if suffix == ".mcap":
+        try:
+            from hydromon.store import mcap_read
+        except ImportError as exc:  # pragma: no cover - the module ships with hydromon
+            raise ValueError(f"{name}: reading MCAP needs hydromon.store.mcap_read ({exc})") from None
+        if not path.exists():
+            raise FileNotFoundError(f"{name}: no such file")
+        try:
+            rejected: list[str] = []
+            messages: list[tuple[int, RigConfig]] = []
+            rig_id, data, seq = mcap_read.read_samples(str(path), rig=rig, rejected=rejected, configs=messages)
+            stored = mcap_read.stored_configs(str(path), rig_id) if config is None else []
+        except ValueError as exc:
+            raise ValueError(_named(name, exc).replace("; choose one", "; choose one with --rig ID")) from None
+        where = f"{name} rig {rig_id!r}"
+        if len(data) == 0:
+            raise ValueError(f"{name}: rig {rig_id!r} has no samples")
+        bad = np.argwhere(~np.isfinite(data))
+        if bad.size:
+            raise ValueError(f"{name}: sample {int(bad[0, 0])} of rig {rig_id!r} is not finite")
+        first = changes = 0
+        if config is None:
+            config, first, changes = _after_last_change(messages, stored, len(data), where)
+        # by seq, as the live monitor: it restarts the filters at a seq jump (which also covers
+        # skipped invalid samples) and never reads t, so t off the grid is counted, not refused.
+        # Its seq tracking runs on through a config change (a duplicate of the last seq before the
+        # change is dropped after it, a gap across it counted); only a rig restart resets it
+        verdicts = sequence_verdicts(seq)
+        restarts = np.flatnonzero(verdicts == RESTART)
+        s0 = int(restarts[restarts <= first].max(initial=0))
+        later = restarts[restarts > s0]
+        if later.size:  # one evaluation grades one run of the rig
+            i = int(later[0])
+            raise ValueError(f"{where}: seq goes from {int(seq[s0:i].max())} back to {int(seq[i])} at sample {i} "
+                             f"(t = {float(data[i, 0])!r} s; the rig restarted): evaluate one run at a time, or "
+                             "replay the recording (hydromon replay --direct), which handles restarts")
+        v = verdicts[s0:]
+        duplicate, out_of_order = int(np.sum(v == DUPLICATE)), int(np.sum(v == OUT_OF_ORDER))
+        idx = s0 + np.flatnonzero(np.isin(v, TAKEN))
+        gaps_at = np.flatnonzero(verdicts[idx] == GAP).tolist()
+        missing = int(np.sum(np.diff(seq[idx])[np.asarray(gaps_at, dtype=np.int64) - 1])) - len(gaps_at)
+        n_before = int(np.sum(idx < first))
+        # the estimates restart at the change anyway: a gap right there restarts nothing more
+        restarts = [i - n_before for i in gaps_at if i - n_before > 0]
+        idx = idx[n_before:]
+        data, seq = data[idx], seq[idx]
+        jitter, jitter_max = time_jitter(data[:, 0], seq, config.sample_rate)
+        return Recording(rig_id, data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
+                         tuple(restarts), missing, len(rejected), duplicate, out_of_order,
+                         jitter, jitter_max, changes, first)
+    raise ValueError(f"{name}: unknown file type {path.suffix!r}; give a .csv (t,ug,x1,x3,x4,x5) or .mcap")
+
+

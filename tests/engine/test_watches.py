@@ -1,0 +1,41 @@
+"""The monitor node's watchers: the rate-limited rejection log."""
+
+from __future__ import annotations
+
+from hydromon.engine.watches import RateLimitedLog
+
+
+def test_rejection_log_is_rate_limited_per_reason(caplog):
+    now = [0.0]
+    rl = RateLimitedLog(interval=5.0, clock=lambda: now[0])
+    with caplog.at_level("WARNING", logger="hydromon.bus.monitor"):
+        for i in range(100):
+            now[0] = i * 0.1  # 10 s of rejections
+            rl("not-json", "hydro/rig/a/sample", "bad")
+            if i % 10 == 0:
+                rl("bad-key", "x/y", "nope")
+    lines = [r.getMessage() for r in caplog.records]
+    assert [ln.split()[1] for ln in lines] == ["not-json", "bad-key", "not-json", "bad-key"]
+    assert lines[2].endswith("(+49 more since the last report)")  # 0.1 .. 4.9 s suppressed
+    assert lines[3].endswith("(+4 more since the last report)")
+
+
+def test_rejection_log_reports_a_last_burst_without_a_further_rejection(caplog):
+    now = [0.0]
+    rl = RateLimitedLog(interval=5.0, clock=lambda: now[0])
+    with caplog.at_level("WARNING", logger="hydromon.bus.monitor"):
+        for i in range(30):  # 3 s of rejections, then none
+            now[0] = i * 0.1
+            rl("not-json", "hydro/rig/a/sample", "bad")
+        rl("bad-key", "x/y", "nope")
+        now[0] = 4.0
+        rl.flush()  # not due yet
+        assert len(caplog.records) == 2
+        now[0] = 5.0
+        rl.flush()
+        assert caplog.records[-1].getMessage() == "rejected not-json: 29 more since the last report"
+        rl.flush(final=True)  # nothing more suppressed: nothing to say
+        assert len(caplog.records) == 3
+        rl("bad-key", "x/y", "nope")
+        rl.flush(final=True)  # the node stopping: reported whether due or not
+    assert caplog.records[-1].getMessage() == "rejected bad-key: 1 more since the last report"
