@@ -1,4 +1,4 @@
-"""The README's noise table: paper's identification input, 10 seeds per noise model.
+"""The noise tables of docs/noise.md: paper's identification input, 10 seeds per noise model.
 
 Mean absolute relative error of our recipe and of the paper's literal one, and how often the
 truth lies inside our +-3 standard errors. Run: python benchmarks/noise_table.py [--seconds T]

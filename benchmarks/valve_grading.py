@@ -1,7 +1,7 @@
-"""The README's valve-grading table: seeded random rigs graded under three choices of ranges.
+"""The valve-grading table of docs/method.md: seeded random rigs graded under three choices of ranges.
 
 60 random rigs per noise model (none, realistic, stress; severity uniform, the seeds of
-tests/test_grading_random_rigs.py), the variable-condition, multisine and chirp profiles,
+tests/monitor/test_grading_random_rigs.py), the variable-condition, multisine and chirp profiles,
 10 s each, the monitor starting with the run or 3 s into it. Prints right grades out of 180
 for Table 3 as printed (the valve on K_sv omega^2), both valve parameters, and the default
 (the valve on its static gain K_sv), and how often each valve parameter's truth lies outside

@@ -22,9 +22,10 @@ Rules (all in :func:`grade_kernel`, which the single-rig and batched paths share
   shown). When no multi-band parameter is placed (the two-level leakages
   alone say nothing between health and deterioration), the straddler with the smallest SE
   relative to its band's width is graded at its value, so a rig near a band edge still gets a
-  grade. (Measured on 180 seeded random rigs, tests/test_grading_random_rigs.py: 97 % right;
-  promoting the most precise straddler whenever it is worse than the placed ones: 95 %.) A non-finite value or SE is never placed. For a two-level parameter an interval
-  over the threshold spans four grades, so it is not placed.
+  grade. (Measured on 180 seeded random rigs, tests/monitor/test_grading_random_rigs.py: 97 %
+  right; promoting the most precise straddler whenever it is worse than the placed ones: 95 %.)
+  A non-finite value or SE is never placed. For a two-level parameter an interval over the
+  threshold spans four grades, so it is not placed.
 - **Hysteresis.** Once placed in band ``b`` a parameter leaves it only when its value is past
   the edge by a margin ``m_j = min(margin * |e_j|, half the narrower inner band next to e_j)``
   (default 2 %): the new band is ``b`` clamped to [grade with every edge moved ``m_j`` towards

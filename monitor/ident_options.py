@@ -128,7 +128,7 @@ class IdentOptions(BaseModel):
     observer_crossover : float
         The observer's crossover w_c [rad/s]: below it the measured pressures count, above it
         the chamber model's. 2 rad/s is where the pressure noise (5 kPa) and the integrated
-        spool-position noise (0.5 um) cost alike at realistic noise (README).
+        spool-position noise (0.5 um) cost alike at realistic noise (docs/method.md).
     outlier_gate : float
         Sensor glitches: a sample of x1, x3, x4 or x5 that jumps away from both neighbours,
         with a centred second difference above outlier_gate times the channel's running rms

@@ -10,8 +10,9 @@ least squares (``monitor.rls.rls_step``, paper eqs 46-54 with Lambda = 1):
     (39) -x6' = [x6, x5, -K_p (ug - K_f x1)] . [2 zeta omega, omega^2, K_sv omega^2]
 
 with z1, z2 the orifice factors of ``plant_sim.model.orifice_z`` (the printed eqs 31 and
-36 are garbled; see paper-notes.md). The paper's form of the valve equation, with the
-noisiest signal (a second T-D derivative of x5) as the target, is kept on purpose.
+36 are garbled; ``plant_sim/model.py`` derives the flow law). The paper's form of the valve
+equation, with the noisiest signal (a second T-D derivative of x5) as the target, is kept on
+purpose.
 
 What we changed, and why (documented departures, not new methods):
 

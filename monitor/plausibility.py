@@ -12,7 +12,7 @@ K_sv -16 SE); the same record in SI has none.
 
 Left out: friction, stiffness and the leakages (their true value can be 0); the valve's omega^2
 and 2 zeta omega (a monitor joining a running rig cannot identify them and their SE does not
-cover the error then: one false alarm in 59,760 evaluations, README "Known limits"); and the
+cover the error then: one false alarm in 59,760 evaluations, docs/limits.md); and the
 force balance's m and B + f_v: an external load the config's F_L does not know (300-1500 N,
 a real rig's weight on a vertical cylinder) drives B + f_v below -4 SE in 138 of 300
 evaluations of one record, on a rig whose input is right. So a wrong x1 zero (5 cm: B + f_v

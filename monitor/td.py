@@ -222,7 +222,7 @@ def td_lag(r: float, h0: float, h: float, freq: float, amplitude: float = 1.0, s
 
 
 def config_scales(config, omega: float = 2.0 * math.pi * 2.5) -> dict[str, float]:
-    """Per-channel T-D scale [SI] from a ``plant_sim.params.RigConfig``'s sensor spans.
+    """Per-channel T-D scale [SI] from a ``hydromon.contract.RigConfig``'s sensor spans.
 
     x1 [m], x3/x4 [Pa], x5 [m] use the spans; the second-stage T-Ds on the derivatives
     x2 [m/s] and x6 [m/s] use span * omega, omega [rad/s] the fastest tracked motion

@@ -1,7 +1,7 @@
 """Classical RK4 (paper eq 56) with internal substeps, for one rig or a fleet.
 
 Accuracy (measured against 200 substeps, re-checked by
-``tests/test_plant.py::test_substep_error_table``; paper identification input, 10 s; max abs
+``tests/plant_sim/test_plant.py::test_substep_error_table``; paper identification input, 10 s; max abs
 error over the run):
 
     substeps  x1 [m]    x2 [m/s]  p1 [Pa]   p2 [Pa]   x5 [m]    x6 [m/s]

@@ -2,7 +2,7 @@
 
 ``PlantFleet.step(k)`` returns the next k samples of every rig. Stepping in blocks of any
 sizes gives, bit for bit, the samples of one :func:`plant_sim.simulate.simulate_fleet`
-call with the same rigs and seeds (``tests/test_live.py`` pins it):
+call with the same rigs and seeds (``tests/plant_sim/test_live.py`` pins it):
 
 - the integrator is :func:`plant_sim.integrate.advance`, called per sample by
   :func:`step_fleet` exactly as :func:`plant_sim.integrate.run_fleet` calls it; the

@@ -1,6 +1,6 @@
 """Measurement noise models: white Gaussian per channel plus optional quantisation.
 
-Two named models (issue 2): ``realistic`` sensors (rms x1 5 um, x3 and x4 5 kPa,
+Two named models: ``realistic`` sensors (rms x1 5 um, x3 and x4 5 kPa,
 x5 0.5 um) and ``stress`` (0.1 % of each sensor's full-scale span from the rig
 config); ``pct:F`` is F % of span. Everything is seeded: the same seed gives the same
 noise, bit for bit.

@@ -1,8 +1,8 @@
 """Rig constants, plant parameters and model effects: the one source of truth.
 
 Everything is SI: m, m^2, m^3, Pa, N, kg, s, V. The defaults are the paper's
-Table 1 (Lin et al. 2023) with A1 = 0.008 m^2 (DESIGN.md section 5) and
-f_v = 25 N s/m so that B + f_v = 6025, Table 2's true value (paper-notes.md).
+Table 1 (Lin et al. 2023) with A1 = 0.008 m^2 (the value consistent with the paper's other
+constants and results) and f_v = 25 N s/m so that B + f_v = 6025, Table 2's true value.
 
 The numerical core never sees these pydantic models: `plant_vector` flattens
 them into one float64 array whose layout is given by the ``P_*`` indices, so a
@@ -86,7 +86,7 @@ class PlantParams(_Model):
         return self.C_d * self.W / math.sqrt(self.rho)
 
     def identified(self) -> dict[str, float]:
-        """The true values of the identified parameters, by their bus names (DESIGN.md 3)."""
+        """The true values of the identified parameters, by their bus names (``contract.PARAM_NAMES``)."""
         w2 = self.omega_sv**2
         return {
             "m": self.m,

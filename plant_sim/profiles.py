@@ -51,7 +51,7 @@ class PaperIdentification(Profile):
 
 @dataclass(frozen=True)
 class PaperVariable(Profile):
-    """Paper section 4.2 (garbled in print; paper-notes.md): 0.5 sin(5 pi t) plus a level of
+    """Paper section 4.2 (garbled in print, read as): 0.5 sin(5 pi t) plus a level of
     2.5 V for t <= T/4 or T/2 < t <= 3T/4, else 2 V. ``period`` is T [s]; the pattern repeats."""
 
     period: float = 10.0

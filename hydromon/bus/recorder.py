@@ -1,6 +1,6 @@
 """Recorder node: everything under ``<ns>/**`` on an open zenoh session, into MCAP files.
 
-The node takes an open session (STYLE.md 8) and never opens one. Samples arrive through a
+The node takes an open session (its caller owns it) and never opens one. Samples arrive through a
 FIFO channel handler (zenoh forbids blocking or calling its API inside callbacks) that the
 worker loop drains; between batches the loop closes the open chunk once it is
 ``flush_interval_ns`` old, so a killed recorder loses well under a second, and rotates
@@ -152,7 +152,7 @@ class Rotation:
         Start a new file once the current one spans this much log time [ns] (from its
         first message, so a quiet bus makes no empty files).
     writer_kwargs : dict
-        Passed to :class:`~hydromon.store.mcap_read.RecordingWriter`.
+        Passed to :class:`~hydromon.store.mcap_write.RecordingWriter`.
     on_file : callable or None
         Called with each new file's path.
 

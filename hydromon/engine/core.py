@@ -96,7 +96,7 @@ class MonitorCore(RegularBatch):
     max_rigs : int
         Most rigs this core holds (about 5 kB each): a valid sample or config of a further rig
         id is rejected (``too-many-rigs``), so bogus ids on a shared bus cannot grow the monitor
-        without bound (a review: 20,000 of them added about 100 MB). Shard a larger plant.
+        without bound (20,000 of them would add about 100 MB). Shard a larger plant.
     on_reject : callable or None
         Called as ``on_reject(reason, key, detail)`` for every rejected message (logging).
     on_warning : callable or None
@@ -299,7 +299,7 @@ class MonitorCore(RegularBatch):
                                             f"at {self.fleet.sample_rate} Hz")
         except Rejected as exc:
             # a rig being graded: its next health says bad-input (it is still graded on the
-            # constants it had; a review found a rejected config left it saying ok)
+            # constants it had, so its health must not say ok as if nothing were wrong)
             self._reject(exc.reason, key, exc.detail, self.rigs.get(rig_id))
             return
         if rig_id not in self.configs and rig_id not in self.rigs and \

@@ -1,6 +1,6 @@
 """Presenters of a ``monitor.audit.AuditResult``: JSON document, text summary, Markdown + PNG report.
 
-Compute, then present (STYLE.md rule 10): nothing here analyses; it formats the result.
+Compute, then present: nothing here analyses; it formats the result.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def _num(x):
 
 
 def to_json(result) -> dict:
-    """The ``audit`` JSON document (DESIGN.md 6): cause, candidates, gain, params_nominal,
+    """The ``audit --json`` document: cause, candidates, gain, params_nominal,
     params_extended (the named cause's model, or the nominal one), plus confident/note."""
     best = result.best
     ext = dict(best.params) if best else dict(result.params_nominal)

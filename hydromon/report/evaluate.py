@@ -19,9 +19,9 @@ def _num(v: float):
 
 
 def to_json(ev: Evaluation) -> dict:
-    """The ``evaluate --json`` document: DESIGN.md section 6's keys (plus ``refined`` when the
-    refinement ran); non-finite numbers (an unidentified parameter's standard error is inf)
-    become null."""
+    """The ``evaluate --json`` document: grade, level, confidence, status, params, std_errors and
+    the record's counts (plus ``refined`` when the refinement ran); non-finite numbers (an
+    unidentified parameter's standard error is inf) become null."""
     a = ev.assessment
     out = {
         "grade": a.grade,
@@ -41,7 +41,7 @@ def to_json(ev: Evaluation) -> dict:
     out["timestamp_jitter"] = {"intervals": rec.jitter, "max_s": rec.jitter_max}
     out["config_changes"] = {"count": rec.config_changes, "skipped_samples": rec.skipped}
     out["memory_s"] = ev.memory_s  # None: a growing window
-    if ev.refined is not None:  # an added key (DESIGN.md 6: add more freely)
+    if ev.refined is not None:  # present only when --refine ran
         r = ev.refined
         out["refined"] = {"ok": r.ok, "message": r.message,
                           "params": {k: _num(r.params[k]) for k in REFINED},

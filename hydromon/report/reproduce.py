@@ -212,7 +212,7 @@ def _clean(x):
 
 
 def to_json(rep: Reproduction) -> dict:
-    """``{"table2": [...], "table3": [...], "table4": [...], ...}`` (DESIGN.md section 6)."""
+    """The ``reproduce --json`` document: ``{"table2": [...], "table3": [...], "table4": [...], ...}``."""
     return _clean({"table2": rep.table2, "table3": rep.table3, "table4": rep.table4, "noise": rep.noise,
                    "seeds": rep.seeds, "table3_source": rep.table3_source})
 

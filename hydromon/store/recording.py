@@ -76,7 +76,7 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
     ``rig`` picks the rig of a multi-rig MCAP (a CSV holds one rig, called ``csv``). The rig
     constants are ``config`` if given (for the whole record), else the recording's (MCAP:
     those after the last config change, and only the samples after it are kept), else the
-    defaults (DESIGN.md section 5).
+    defaults (the paper's rig, ``RigConfig()``).
     """
     path = Path(path)
     name = str(path)

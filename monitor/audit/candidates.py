@@ -1,4 +1,4 @@
-"""The library of named candidate model extensions the audit ranks (STYLE.md rule 5).
+"""The library of named candidate model extensions the audit ranks (physical names only).
 
 Each candidate is a small object with a physical ``name`` (one of
 ``plant_sim.params.EFFECT_NAMES``), the ``regressors`` it adds, a readable ``equation``,

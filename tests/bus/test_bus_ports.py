@@ -107,8 +107,8 @@ def test_zenoh_errors_lose_their_rust_source_paths():
 @pytest.mark.network
 @pytest.mark.timeout(60)
 def test_a_node_whose_connect_reaches_nobody_says_so(capsys):
-    # a review: `hydromon record --connect tcp/127.0.0.1:1 --duration 1` (a peer: zenoh opens and
-    # keeps retrying) wrote an empty recording with exit status 0 and said nothing
+    # `hydromon record --connect tcp/127.0.0.1:1 --duration 1` (a peer: zenoh opens and keeps
+    # retrying) must say that its endpoint reached nobody, not write an empty recording in silence
     from hydromon.bus.session import warn_if_not_connected
 
     with socket.socket() as held:  # bound, not listening: a connect is refused

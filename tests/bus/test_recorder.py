@@ -62,7 +62,7 @@ def test_rotation_by_size_keeps_every_message_and_carries_configs(tmp_path):
         seqs.extend(seq)
         assert read_rig_config(p, "r1") == RigConfig(p_s=10e6)
         # ... as a config message ahead of the part's first sample, so a replay of one part alone
-        # grades with the rig's constants (a review: parts after the first were graded with the defaults)
+        # grades with the rig's constants, not the defaults
         first = next(iter(read_recording(p)))
         assert first[0] == config_key("r1") and first[1] == cfg
     assert seqs == list(range(n))
@@ -166,9 +166,9 @@ def test_record_over_a_real_zenoh_session_in_a_thread(tmp_path):
 @pytest.mark.network
 @pytest.mark.timeout(60)
 def test_a_recorder_started_late_asks_the_running_rigs_for_their_configs(tmp_path):
-    # a review: a recorder started after the rigs recorded no config (a rig publishes it once, at
-    # its start), so the recording was evaluated and replayed with the default rig constants
-    # (`hydromon sim --fleet` with p_s 16 MPa, F_L 6 kN, then `hydromon record`: m 287 kg, not 125).
+    # a rig publishes its config once, at its start; a recorder started after the rigs must still
+    # record it, or the recording is evaluated and replayed with the default rig constants
+    # (`hydromon sim --fleet` with p_s 16 MPa, F_L 6 kN graded that way: m 287 kg, not 125).
     # The sim node answers late joiners on <ns>/rig/*/config, as the monitor uses.
     cfg = RigConfig(K_f=42.0, p_s=16e6).model_dump_json().encode()
     with listening_session() as (rig_session, ep), open_session("peer", connect=[ep]) as rec_session:
@@ -234,7 +234,7 @@ def test_a_burst_of_bogus_keys_and_configs_does_not_flood_the_recorders_log(tmp_
 
 
 def test_a_part_carries_the_last_valid_config_not_a_rejected_one(tmp_path):
-    # a review: an invalid config payload (which the monitor rejects) was carried into every later part
+    # an invalid config payload (which the monitor rejects) is not carried into later parts
     r, _ = _rotation(tmp_path, rotate_bytes=3000)
     good = RigConfig(F_L=3000.0).model_dump_json().encode()
     r.write(config_key("r1"), good, 1, 1)

@@ -149,9 +149,10 @@ def test_record_command_stops_after_its_duration_and_prints_the_file(tmp_path, c
 
 
 def test_the_recorders_clock_does_not_follow_a_wall_clock_step():
-    # a review: log times were time.time_ns() per message, so an NTP step back during a recording
-    # put later samples before earlier ones in log-time order (evaluate then called it a rig
-    # restart), and a step forward was waited out by a paced replay and ended --duration at once
+    # log times follow a steady clock, not time.time_ns() per message: an NTP step back during a
+    # recording would put later samples before earlier ones in log-time order (evaluate would call
+    # it a rig restart), and a step forward would be waited out by a paced replay and end
+    # --duration at once
     from hydromon.bus.recorder import steady_wall_clock
 
     wall, mono = [1_700_000_000 * NS], [5 * NS]

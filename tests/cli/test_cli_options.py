@@ -339,8 +339,9 @@ def test_replay_on_the_bus_publishes_the_window_only(two_rigs):
 
 
 def test_json_into_a_closed_pipe_is_not_a_traceback(tmp_path):
-    """A review: `hydromon ... --json | head -c 100` ended in a BrokenPipeError traceback. Here the
-    reader has closed its end before the command writes (deterministic, unlike `| head`)."""
+    """`hydromon ... --json | head -c 100` ends quietly (status 141), not in a BrokenPipeError
+    traceback. Here the reader has closed its end before the command writes (deterministic,
+    unlike `| head`)."""
     import subprocess
     import sys
 

@@ -267,7 +267,7 @@ def test_monitor_core_names_eval_every():
 
 
 def test_sim_refuses_two_outputs_that_are_one_file_through_a_link(tmp_path, capsys):
-    # a review: the check compared absolute paths, so a symlink to the other output passed it
+    # the check compares files, not absolute paths: a symlink to the other output is the same file
     (tmp_path / "a").write_text("keep")
     os.symlink(tmp_path / "a", tmp_path / "b")
     assert main(["sim", "--duration", "1", "--rigs", "1", "--to-csv", str(tmp_path / "a"),
@@ -339,8 +339,8 @@ def test_a_client_whose_router_is_not_up_is_one_error_line_and_status_1(tmp_path
 @pytest.mark.parametrize("argv", [["evaluate"], ["audit"], ["replay", "--direct"],
                                   ["replay", "--wait", "0", "--connect", "tcp/127.0.0.1:9"], ["recover"]])
 def test_a_directory_given_as_the_recording_is_one_error_line_not_a_traceback(tmp_path, capsys, argv):
-    # a review: evaluate and replay (bus and --direct) raised IsADirectoryError with a traceback
-    # (exit 1) for a directory named like a recording; recover said "no such file"
+    # evaluate, replay (bus and --direct) and recover given a directory named like a recording:
+    # one error line and exit 2, not an IsADirectoryError traceback or "no such file"
     folder = tmp_path / "run.mcap"
     folder.mkdir()
     assert main([argv[0], str(folder), *argv[1:]]) == 2
@@ -355,8 +355,8 @@ def test_a_directory_given_as_the_recording_is_one_error_line_not_a_traceback(tm
      "permitted (got 1)"),
 ])
 def test_a_bad_ranges_file_is_one_error_line(tmp_path, capsys, text, needle):
-    # a review: pydantic's own text (several lines per problem, the whole file as its input and a
-    # web address) and "[Errno 2] No such file or directory: '...'" after the name
+    # one line naming the file and the problem, not pydantic's own text (several lines per problem,
+    # the whole file as its input and a web address) nor "[Errno 2] No such file or directory: '...'"
     path = tmp_path / "missing.json"
     if text is not None:
         path.write_text(text)
@@ -382,7 +382,7 @@ def test_pydantic_errors_are_one_short_line():
 
 
 def test_a_fleet_file_of_another_format_says_what_a_fleet_file_is(tmp_path, capsys):
-    # a review: `sim --fleet a.csv` said only "Expecting value: line 1 column 1 (char 0)"
+    # `sim --fleet a.csv` says what a fleet file is, not only "Expecting value: line 1 column 1 (char 0)"
     path = tmp_path / "a.csv"
     path.write_text("id,severity\nr1,0.5\n")
     assert main(["sim", "--fleet", str(path), "--to-csv", str(tmp_path / "x.csv"), "--duration", "1"]) == 2
@@ -390,8 +390,8 @@ def test_a_fleet_file_of_another_format_says_what_a_fleet_file_is(tmp_path, caps
 
 
 def test_record_names_out_when_its_directory_cannot_be_made(tmp_path, capsys):
-    # a review: `record --out /proc/nope/x.mcap` passed the checks (root may write /proc) and then
-    # said only "[Errno 2] No such file or directory: '/proc/nope'"
+    # `record --out /proc/nope/x.mcap` (root may write /proc, but not make a directory there) is
+    # refused by the checks, naming --out, not with "[Errno 2] No such file or directory: '/proc/nope'"
     assert main(["record", "--out", "/proc/nope/x.mcap", "--duration", "1", "--listen", "tcp/127.0.0.1:0"]) == 2
     one_error_line(capsys, "record", "--out '/proc/nope/x.mcap'")
 

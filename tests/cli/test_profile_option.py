@@ -92,7 +92,7 @@ def test_the_profile_file_limit_is_the_contract_s():
 
 @pytest.mark.parametrize("opt, name, other", [("--to-csv", "run.mcap", "--to-mcap"), ("--to-mcap", "run.CSV", "--to-csv")])
 def test_sim_refuses_a_file_name_that_says_the_other_format(tmp_path, capsys, opt, name, other):
-    # a review: --to-csv x.mcap wrote CSV text into x.mcap (evaluate and replay then refuse it)
+    # --to-csv x.mcap would write CSV text into x.mcap (which evaluate and replay then refuse)
     assert main(["sim", "--duration", "1", opt, str(tmp_path / name)]) == 2
     assert f"use {other}" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())

@@ -250,7 +250,7 @@ def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
     warnings = []
     core, health = run_core(msgs, on_warning=lambda r, m: warnings.append((r, m)))
     assert core.counters.config_changes == 1 and core.configs[rig] == changed
-    # said once, naming what changed (a live review: the estimates restarted without a log line)
+    # said once, naming what changed (the estimates restart: the log must say why)
     assert [w for w in warnings if "config changed" in w[1]] == [
         (rig, "config changed (p_s): its estimates restart with the new constants (a grade again after about 3 s "
               "of samples)")]
@@ -359,8 +359,9 @@ def test_a_rig_whose_x1_empties_a_chamber_is_warned_of_once_while_running():
 
 
 def test_a_monitor_holds_at_most_max_rigs_and_says_so():
-    """A live review: 20,000 bogus but valid rig ids added about 100 MB to the monitor. Beyond
-    max_rigs a new id's samples and configs are rejected (too-many-rigs); known rigs carry on."""
+    """Bogus but valid rig ids cannot grow the monitor without bound (20,000 of them would add about
+    100 MB). Beyond max_rigs a new id's samples and configs are rejected (too-many-rigs); known rigs
+    carry on."""
     rejected = []
     core = MonitorCore(NS, max_rigs=2, on_reject=lambda r, k, d: rejected.append((r, k, d)))
     cfg = orjson.dumps(RigConfig().model_dump(mode="json"))
@@ -380,9 +381,9 @@ def test_a_monitor_holds_at_most_max_rigs_and_says_so():
 
 
 def test_a_rejected_config_of_a_graded_rig_makes_its_next_health_bad_input():
-    """A live review: a config at another sample rate was one rate-limited log line and the rig
-    went on saying ok. Its next health now says bad-input (still graded on the constants it had),
-    the one after it ok again."""
+    """A config at another sample rate is rejected, and not only in a rate-limited log line: the
+    rig's next health says bad-input (still graded on the constants it had), the one after it ok
+    again."""
     core, health = run_core(CLEAN[:5 + 5 * 400])
     rig = "table4-g1"
     assert orjson.loads(core.latest[rig])["status"] == "ok"

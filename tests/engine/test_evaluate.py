@@ -76,7 +76,7 @@ def test_short_recording_is_converging_with_null_level(g4_run, tmp_path, capsys)
     doc = json.loads(capsys.readouterr().out)
     assert doc["status"] == "converging" and doc["level"] is None and doc["grade"] == "unknown"
     assert doc["std_errors"]["m"] is None  # inf: not identified yet, null in JSON
-    # the table says why: the record's length (a review: it blamed an unexcited valve)
+    # the table says why: the record's length (not an unexcited valve)
     assert main(["evaluate", str(p)]) == 0
     out = " ".join(capsys.readouterr().out.split())
     assert "not converged: the chamber and valve equations need 300 rows each" in out
@@ -125,7 +125,7 @@ def test_bad_csv_raises_a_clear_error(tmp_path, text, match):
 
 
 def test_blank_lines_at_the_end_are_allowed(tmp_path):
-    # a review: an editor's extra newline at the end was refused as "line N: empty line"
+    # an editor's extra newline at the end is not refused as "line N: empty line"
     assert len(load_recording(_write(tmp_path, GOOD + "\n\n  \n")).t) == len(load_recording(_write(tmp_path, GOOD)).t)
 
 
@@ -170,8 +170,8 @@ def test_mcap_recording_is_graded(g4_run, tmp_path, capsys):
 
 
 def test_an_mcap_without_the_rigs_config_says_the_papers_constants_were_taken(g4_run, tmp_path, capsys):
-    """A review: evaluate said "rig constants as recorded" of an MCAP holding no config for the
-    rig, and graded it with the paper's constants."""
+    """An MCAP holding no config for the rig is graded with the paper's constants, and evaluate
+    says so instead of "rig constants as recorded"."""
     from hydromon.store.mcap_write import RecordingWriter
 
     p = tmp_path / "bare.mcap"
@@ -341,8 +341,8 @@ def test_plot_markers_count_a_burst_the_gate_still_holds(g4_run, tmp_path):
 
 
 def test_plots_into_a_file_is_refused_before_the_evaluation(g4_csv, tmp_path, capsys, monkeypatch):
-    # a review: an existing file as --plots was refused only after the evaluation (minutes with
-    # --refine), as audit --report and reproduce --plots are not
+    # an existing file as --plots is refused before the evaluation, not after (minutes with
+    # --refine), as audit --report and reproduce --plots are
     import hydromon.engine.evaluate
 
     target = tmp_path / "a-file"

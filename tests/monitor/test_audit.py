@@ -84,10 +84,10 @@ def test_clean_record_gives_none(seed):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_a_short_clean_record_gives_none(tmp_path, seed):
-    """A review: `hydromon sim --severity 0 --duration 20 --noise realistic --seed S` then
-    `hydromon audit` named stribeck_friction (seed 0, score 1.01) and load_offset (seed 1, 0.27),
-    both confident: one noise excursion among the 20 held-out rest rows, which any wider dead
-    zone absorbs (the rest block's variance floor now counts one such row as noise)."""
+    """`hydromon sim --severity 0 --duration 20 --noise realistic --seed S` then `hydromon audit`
+    names no cause. Without the rest block's variance floor, one noise excursion among the 20
+    held-out rest rows (which any wider dead zone absorbs) named stribeck_friction (seed 0) and
+    load_offset (seed 1), both confident; the floor counts one such row as noise."""
     from hydromon.cli.main import main
     from hydromon.store.recording import load_recording
 
@@ -220,10 +220,11 @@ def test_cli_mcap(tmp_path, capsys):
 
 
 def test_audit_reads_a_record_as_evaluate_does(tmp_path, capsys):
-    """A review: the audit read files its own way. A re-sent (duplicate) MCAP message was "t does
-    not increase strictly", a config change applied the last constants to every sample, t in ms
-    was "force equation: only 0 training rows" after the work, and --config's sample_rate was
-    replaced by the file's median interval. Now it reads them as ``hydromon evaluate`` does."""
+    """The audit reads a file as ``hydromon evaluate`` does: a re-sent (duplicate) MCAP message is
+    dropped (not "t does not increase strictly"), only the samples after a config change are taken,
+    with its constants, t in ms is refused before the work (not "force equation: only 0 training
+    rows" after it), and --config's sample_rate is kept (not replaced by the file's median
+    interval)."""
     from hydromon.cli.commands.audit import load
     from hydromon.cli.main import main
     from hydromon.store.mcap_write import RecordingWriter
@@ -263,8 +264,8 @@ def test_audit_reads_a_record_as_evaluate_does(tmp_path, capsys):
     assert "not 200 Hz" in capsys.readouterr().err
 
 def test_across_a_gap_the_audit_takes_the_longest_stretch_and_says_so(tmp_path, capsys):
-    """A review: one invalid sample (x3 = 5e9 Pa) made a recording un-auditable (the gap was an
-    error). The audit now takes the longest stretch without a gap, as evaluate --refine does,
+    """One invalid sample (x3 = 5e9 Pa) leaves a gap, which does not make a recording
+    un-auditable: the audit takes the longest stretch without a gap, as evaluate --refine does,
     and names it on stderr and in the JSON."""
     from hydromon.cli.commands.audit import load
     from hydromon.cli.main import main
@@ -333,12 +334,12 @@ def test_clean_records_sweep_40():
 
 @pytest.fixture(scope="module")
 def sweep_40():
-    """The issue's 40 seeded hidden cases (about 40 s), run once for the tests below."""
+    """The 40 seeded hidden cases (about 40 s), run once for the tests below."""
     return _sweep(range(2000, 2040))
 
 
 def test_hidden_effects_sweep_40(sweep_40):
-    """The issue's bar, in CI: 40 seeded hidden cases, >= 90 % named right, no clean record
+    """The acceptance bar, in CI: 40 seeded hidden cases, >= 90 % named right, no clean record
     named, the median held-out free-run error reduction of the named effects >= 50 %."""
     hits, none_named, gains, rows = sweep_40
     assert none_named == 0, rows
@@ -348,7 +349,7 @@ def test_hidden_effects_sweep_40(sweep_40):
 
 def test_every_named_effect_improves_the_free_run(sweep_40):
     """Every named effect's extended model simulates the held-out part better than the nominal
-    model (the issue's criterion; Stribeck friction needs the output-error refinement of its
+    model (the acceptance criterion; Stribeck friction needs the output-error refinement of its
     friction for that, see monitor.audit.audit._output_error)."""
     _, _, gains, _ = sweep_40
     assert all(g > 0 for g in gains), gains
@@ -413,8 +414,8 @@ def test_free_run_with_true_parameters_reproduces_the_record():
 
 @pytest.mark.parametrize("what, scale", [("x1 in mm", (1, 1e3, 1, 1, 1)), ("pressures in bar", (1, 1, 1e-5, 1e-5, 1))])
 def test_a_record_in_wrong_units_names_no_cause(what, scale):
-    # a user review: x1 in mm was audited as "sensor_delay, confident", pressures in bar as
-    # "load_offset, confident"; the record does not obey the model, and the audit says so
+    # x1 in mm fits "sensor_delay" best and pressures in bar "load_offset", but such a record does
+    # not obey the model: the audit says so and names no cause
     _, run = hidden_case(3, "load_offset")
     res = audit(run.samples * np.array(scale), run.config)
     assert res.cause == "none" and not res.confident, (what, res.cause, res.note)
@@ -424,7 +425,7 @@ def test_a_record_in_wrong_units_names_no_cause(what, scale):
 
 
 def test_audit_reports_its_stages_and_a_long_audit_says_so_on_stderr():
-    # a review: a one-hour record audited for 95 s with nothing on stderr after the header line
+    # a one-hour record audits for about 95 s: the audit reports its progress on stderr meanwhile
     from hydromon.cli.commands.audit import Progress
 
     _, run = hidden_case(2001, noise="none")

@@ -1,5 +1,5 @@
 """The force balance with observed pressures (monitor.force_observer): its filter identity, its
-read-out against numpy, and B + f_v against the issue's target under noise."""
+read-out against numpy, and B + f_v against its 1 % target under noise."""
 
 from __future__ import annotations
 
@@ -147,8 +147,8 @@ def _b_fv(noise: str, seeds: list[int], observer: bool = True, gap: bool = False
 
 
 def test_b_fv_meets_the_issue_target_at_realistic_noise():
-    """Paper's input, 10 s, realistic noise, seeds 0-9 (the README's noise table): B + f_v within
-    1 % mean absolute error (the issue's target; measured 0.93 %, the plain force balance 4.38 %),
+    """Paper's input, 10 s, realistic noise, seeds 0-9 (docs/noise.md's table): B + f_v within
+    1 % mean absolute error (the target; measured 0.93 %, the plain force balance 4.38 %),
     the truth inside +-3 SE in at least 9 of 10."""
     rel, z = _b_fv("realistic", list(range(10)))
     assert np.mean(np.abs(rel)) < 0.01, np.mean(np.abs(rel))
@@ -172,11 +172,11 @@ def test_b_fv_survives_a_gap():
 
 
 def test_observer_rows_wait_after_a_step_in_the_command():
-    # found in session 11: on `--profile steps` (healthy rig, realistic noise, 20 s) the force
-    # balance on observed pressures took its rows right after each step in ug and put B + f_v
-    # 9.1 % high at 6.7 SE on seed 3; picked for its smaller SE it graded the rig `fault`. With
-    # the constant force F_0 in the force balances the unguarded rows are no longer that far off
-    # (max 2.7 SE over seeds 0-9), and the guard still halves the worst (1.2 SE)
+    # on `--profile steps` (healthy rig, realistic noise, 20 s) the force balance on observed
+    # pressures, taking its rows right after each step in ug, put B + f_v 9.1 % high at 6.7 SE on
+    # seed 3 without the constant force F_0 and graded the rig `fault` (picked for its smaller SE).
+    # With F_0 the unguarded rows are off by at most 2.7 SE over seeds 0-9, and the guard halves
+    # the worst (1.2 SE)
     from monitor.ident_options import IdentOptions
     from monitor.pipeline import Pipeline
     from plant_sim.noise import noise_model

@@ -394,9 +394,9 @@ def test_level_is_max_of_placed_and_confidence_bounded(rel_se, case):
 
 
 def test_a_level_set_by_a_straddling_parameter_is_shown_on_it_with_a_confidence():
-    # a review's record (paper-var, severity 0.53, 14 s): B + f_v's interval straddled the
-    # deterioration|fault edge; the rig was graded deterioration with confidence 0.000 and every
-    # parameter's grade better than that (B + f_v "unknown")
+    # a parameter whose interval straddles a band edge (B + f_v on a paper-var record at severity
+    # 0.53, 14 s) sets the level its interval proves, shows that level as its own grade (not
+    # "unknown" beside better grades only), and the confidence is the chance that level is right
     import math
 
     e = Ranges.default().params["B_fv"].edges

@@ -1,4 +1,4 @@
-"""Issue 2 acceptance: seeded random rigs graded as their true parameters grade under the default ranges."""
+"""Seeded random rigs are graded as their true parameters grade under the default ranges."""
 
 import numpy as np
 
@@ -43,7 +43,7 @@ def _grade_random_rigs(n_rigs, noises, start=0):
 
 def test_random_rigs_get_the_grade_of_their_true_parameters():
     right, total, misses = _grade_random_rigs(N_RIGS, ("none", "realistic", "stress"))
-    # measured: 178 / 180 = 98.9 % (issue target 95 %); the misses sit within ~0.015 severity
+    # measured: 178 / 180 = 98.9 % (target 95 %); the misses sit within ~0.015 severity
     # of a band edge (before the valve was graded on its static gain: 175 / 180)
     assert right / total >= 0.95, misses
 

@@ -131,9 +131,9 @@ def table2_run():
 
 # Noise-free relative errors of the current recipe (paper's input, 10 s), measured 2026-11-23, and
 # the regression bound of each: about 10x the measured error, so a change that makes any estimate
-# worse by an order of magnitude fails here long before it reaches the issue's 0.5 % target.
+# worse by an order of magnitude fails here long before it reaches the 0.5 % target (docs/noise.md).
 NOISE_FREE_BOUNDS = {  # name: (measured, bound)
-    # K_t: since the constant force F_0 (session 11) it shares x1's mean with it: -4.4e-9 -> 4.0e-7
+    # K_t shares x1's mean with the constant force F_0 (4.0e-7; -4.4e-9 without F_0)
     "m": (2.0e-4, 1.5e-3), "B_fv": (2.8e-5, 2e-4), "f_c": (-8.4e-4, 5e-3), "K_t": (4.0e-7, 4e-6),
     "inv_beta_e": (1.4e-5, 2e-4), "CdW_sqrt_rho": (-8.0e-6, 1e-4), "C_ip": (-9.5e-6, 1e-4),
     "two_zeta_omega": (1.1e-4, 1.5e-3), "omega_sv2": (2.0e-4, 2e-3), "K_sv_omega_sv2": (2.0e-4, 2e-3),
@@ -142,7 +142,7 @@ NOISE_FREE_BOUNDS = {  # name: (measured, bound)
 
 
 def test_table2_noise_free(table2_run):
-    """Paper's identification input, 10 s, noise-free: the issue's target (within 0.5 %, f_c within
+    """Paper's identification input, 10 s, noise-free: the target (within 0.5 %, f_c within
     1 %; |C_ep| < 1e-13), and each estimate within its regression bound (NOISE_FREE_BOUNDS)."""
     run, a = table2_run
     true = run.params.identified()

@@ -1,8 +1,8 @@
 """``--memory S``: the estimators forget, so a rig that degrades while it is watched is followed.
 
-Found in session 11: with the default growing window a valve that lost half its gain 5 min
-into a run (paper-var, realistic noise) was still graded `average` 10 min later, its K_sv
-30 standard errors off; with a memory of 60 s it was graded `deterioration` 77 s after.
+With the default growing window a valve that loses half its gain 5 min into a run (paper-var,
+realistic noise) is still graded `average` 10 min later, its K_sv 30 standard errors off; with
+a memory of 60 s it is graded `deterioration` 77 s after.
 """
 
 from __future__ import annotations

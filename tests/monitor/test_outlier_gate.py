@@ -172,8 +172,8 @@ def test_a_pair_of_jumps_is_replaced_a_two_sample_plateau_step_is_not(col, k, si
 
 def test_a_record_that_starts_mid_run_keeps_the_spools_own_peaks():
     """The spool overshoots a command step for two samples; a pair test on x5 took those peaks
-    for a burst when the gate's scale had not seen the start from rest (review finding: valve
-    parameters 20-24 % off, the grade sub-health instead of health)."""
+    for a burst when the gate's scale had not seen the start from rest (valve parameters
+    20-24 % off, the grade sub-health instead of health). They must pass."""
     from monitor.pipeline import Pipeline
     from plant_sim.simulate import simulate
 

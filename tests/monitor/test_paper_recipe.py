@@ -46,7 +46,7 @@ def test_stress_noise_biases_the_paper_recipe_not_ours():
         for k in ("inv_beta_e", "CdW_sqrt_rho", "C_ip"):
             assert paper[k] < -0.03, (seed, k, paper[k])
             assert abs(ours[k]) < 0.01, (seed, k, ours[k])
-        # the valve within the stress target for K_sv omega^2 (2 %); measured with
+        # the valve within the stress target for K_sv omega^2 (2 %); measured with
         # iv_start 30: -1.0 % worst (seeds 1, 2), 0.87 % mean over seeds 0-9
         for k in ("two_zeta_omega", "omega_sv2", "K_sv_omega_sv2"):
             assert paper[k] < -0.25, (seed, k, paper[k])

@@ -110,8 +110,8 @@ def _clamp_stream(n=40):
 
 
 def test_the_chamber_end_status_does_not_depend_on_batching():
-    # a review: the status was read from the clamp count after the whole batch, so a window that
-    # ended before the first clamped sample said bad-input in one batch and converging message by message
+    # the status comes from the clamp count of each health's own window, not of the whole batch:
+    # a window that ends before the first clamped sample says the same in one batch and message by message
     msgs = _clamp_stream()
     whole = MonitorCore().process(msgs)
     core = MonitorCore()

@@ -49,7 +49,7 @@ def test_noise_free_record_gives_the_true_force_and_chamber_parameters():
 
 
 def test_realistic_noise_b_fv_within_one_percent_with_honest_standard_errors():
-    # the target for B + f_v (the streaming identifier: 4.3 %); 10 seeds
+    # the target for B + f_v (the streaming identifier: 4.3 %); 10 seeds
     runs, starts = _runs("realistic", SEEDS)
     true = runs[0].params.identified()
     refs = [refine(r.samples, RigConfig(), s) for r, s in zip(runs, starts)]
@@ -132,9 +132,10 @@ def test_a_stepped_command_is_followed_not_smeared():
 
 
 def test_a_fit_that_ends_where_the_error_is_not_smooth_is_not_ok():
-    # a review's rig (spread_fleet(20) rig-0015: paper-var, severity 0.79, realistic noise, 30 s):
-    # the fit said ok with standard errors up to 40,000 times too small (C_d W / sqrt(rho) 41,000
-    # SE from its true value, K_sv omega^2 1.5 million); never a confident wrong answer
+    # spread_fleet(20) rig-0015 (paper-var, severity 0.79, realistic noise, 30 s): without the
+    # smoothness check the fit says ok with standard errors up to 40,000 times too small
+    # (C_d W / sqrt(rho) 41,000 SE from its true value, K_sv omega^2 1.5 million); never a
+    # confident wrong answer
     from hydromon.store.fleetfile import spread_fleet
     from hydromon.store.simfiles import select_rig
     from plant_sim.profiles import parse_profile

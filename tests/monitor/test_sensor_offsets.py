@@ -1,8 +1,8 @@
 """A sensor's zero offset must not move the grade: the constant force F_0 in the force balances.
 
-Found in session 11: without a constant term a zero error is a force the balance cannot place
-(A1 dp3, or K_t dx1 = 100 N for 0.1 mm), and f_c and B + f_v took it: x3 +10 kPa graded a
-healthy rig `fault`, x3 +0.1 MPa or x1 +1 mm every `average` rig `fault` at confidence 1.0.
+Without a constant term a zero error is a force the balance cannot place (A1 dp3, or
+K_t dx1 = 100 N for 0.1 mm), and f_c and B + f_v take it: x3 +10 kPa graded a healthy rig
+`fault`, x3 +0.1 MPa or x1 +1 mm every `average` rig `fault` at confidence 1.0.
 """
 
 from __future__ import annotations

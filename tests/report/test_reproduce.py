@@ -129,7 +129,7 @@ def test_reproduce_table2_noise_free_is_within_half_a_percent(reproduced):
         if name in ("f_c", "C_ep"):
             continue
         assert abs(r["rel_err"]) < 0.005, (name, r["rel_err"])
-    # the bound for f_c is the paper's own 1 % (measured: 0.049 % off)
+    # the bound for f_c is the paper's own 1 % (measured: 0.049 % off)
     assert abs(rows["f_c"]["rel_err"]) < 0.01, rows["f_c"]["rel_err"]
     assert rows["C_ep"]["true"] == 0 and rows["C_ep"]["rel_err"] is None
     assert abs(rows["C_ep"]["ours"]) < 1e-13

@@ -135,9 +135,9 @@ def test_a_config_change_evaluates_the_samples_after_it_with_the_new_constants(r
 
 
 def test_a_first_config_that_comes_mid_record_is_a_change_as_live(run, tmp_path):
-    # a review: a recorder that joined a running rig has no config before its first sample; the
-    # first config (at sample 250) was taken as the one in force from the start, so evaluate
-    # graded all 600 samples with it while the live monitor restarted the rig there
+    # a recorder that joined a running rig has no config before its first sample; the first
+    # config (at sample 250) is a change, as it is live (the monitor restarts the rig there), not
+    # the one in force from the start (which would grade all 600 samples with it)
     msgs = _messages(run, configs=[(250, RigConfig(F_L=3000.0))])
     rec = load_recording(_mcap(tmp_path / "late.mcap", msgs))
     core, live = _live(msgs)
@@ -227,8 +227,8 @@ def test_mcap_errors_name_the_file_once(run, tmp_path):
 
 @pytest.mark.parametrize("case", ["duplicate across the change", "gap across the change", "stale seq after it"])
 def test_seq_tracking_runs_on_through_a_config_change_as_live(run, tmp_path, case):
-    # a review: the seq checks ran on the part after the change only, so a duplicate of the last
-    # seq before it was taken, and a gap across it was not counted
+    # the seq checks run on the whole record, not on the part after the change only: a duplicate
+    # of the last seq before it is dropped, and a gap across it is counted
     seqs = list(range(len(run.t)))
     if case == "duplicate across the change":
         seqs = seqs[:250] + [249] + seqs[250:-1]
@@ -245,8 +245,8 @@ def test_seq_tracking_runs_on_through_a_config_change_as_live(run, tmp_path, cas
 
 
 def test_a_duplicate_seq_0_after_a_restart_is_a_duplicate_as_live(run, tmp_path):
-    # a review: restarts were found against the highest seq so far, so the second seq 0 of
-    # 300..., 0, 0, 1, ... counted as another restart; live drops it as a duplicate
+    # restarts are found against the last seq, not the highest so far: the second seq 0 of
+    # 300..., 0, 0, 1, ... is a duplicate (live drops it), not another restart
     n = len(run.t)
     seqs = list(range(300)) + [0, 0] + list(range(1, n - 302 + 1))
     msgs = _messages(run, seqs=seqs, configs=[(0, RigConfig()), (301, RigConfig(F_L=3000.0))])
@@ -266,7 +266,7 @@ def test_a_config_at_another_sample_rate_is_ignored_as_live_rejects_it(run, tmp_
 
 def test_a_restart_whose_seq_0_was_lost_is_found_as_live_finds_it(run, tmp_path):
     # the live monitor takes a run of seqs below the last one as a restart whose first samples were
-    # lost (monitorcore); evaluate refuses that restart as it refuses a seq 0, instead of grading
+    # lost (hydromon.engine.core); evaluate refuses that restart as it refuses a seq 0, instead of grading
     # the old run's estimates on into the new one
     from hydromon.contract import RESTART_RUN
 

@@ -1,7 +1,7 @@
 """Golden recordings (recordings/): each replays, directly, to exactly the health stored in it.
 
 The recordings were made live (recorder and monitor on the bus while the simulator ran, see
-hydromon/goldens.py); the health the live monitor published is in them. A direct replay
+hydromon/tools/goldens.py); the health the live monitor published is in them. A direct replay
 must give those messages again **byte for byte**, in the same order, and the stored
 ``.health.jsonl`` must equal them byte for byte too. Bytes, not parsed JSON: the payload is
 orjson of the monitor's numbers, which prints every float as its shortest round-trip

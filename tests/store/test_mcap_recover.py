@@ -153,8 +153,8 @@ def test_recover_skips_a_damaged_chunk_and_keeps_every_other(which, footer):
 
 @pytest.mark.parametrize("field", ["length", "opcode"])
 def test_recover_resumes_at_the_next_chunk_where_a_records_framing_breaks(field):
-    # a review: a flipped bit in a chunk record's length (or opcode) stopped the walk there, and
-    # every intact chunk after it was lost although the file's summary knows where they start
+    # a flipped bit in a chunk record's length (or opcode) must not stop the walk there and lose
+    # every intact chunk after it: the file's summary knows where they start
     msgs = config_and_samples()
     data, _ = write_messages(msgs, flush_interval_ns=NS // 2)
     spans = chunk_spans(data)
@@ -173,8 +173,8 @@ def test_recover_resumes_at_the_next_chunk_where_a_records_framing_breaks(field)
 @pytest.mark.parametrize("case", ["chunk length grown, still in the file", "chunk length shrunk",
                                   "index opcode -> footer", "index opcode -> message", "index length grown"])
 def test_recover_judges_framing_by_the_summarys_chunks(case):
-    # a review's fuzzing: damage that still fits in the file swallowed intact chunks, ended the walk
-    # as "whole", wrote an index record as a sample, or counted one lost chunk twice
+    # damage that still fits in the file (cases found by fuzzing) must not swallow intact chunks,
+    # end the walk as "whole", write an index record as a sample, or count one lost chunk twice
     msgs = config_and_samples()
     data, _ = write_messages(msgs, flush_interval_ns=NS // 2)
     spans = chunk_spans(data)

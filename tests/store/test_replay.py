@@ -219,9 +219,9 @@ def test_late_sends_do_not_shift_later_deadlines(recording):
 
 @pytest.mark.parametrize("rate", [0.0, 1.0])
 def test_a_replay_stopped_mid_pass_reports_where_not_a_whole_pass(recording, rate):
-    # a review: the progress bar's total was the position reached so far (always full), and a
-    # replay stopped by Ctrl-C/SIGTERM after 3 s of a 20 s recording was reported as "1 pass(es)"
-    # with the bar at 3.1/3.1 s; a replay running late never looked at the stop event
+    # a replay stopped by Ctrl-C/SIGTERM after 3 s of a 20 s recording reports where it stopped,
+    # not "1 pass(es)" with a full bar (the bar's total is the window, not the position reached);
+    # a replay running late still looks at the stop event
     class Stopping(_FakeTime):
         stop = False
 
@@ -376,8 +376,8 @@ def test_a_bus_replay_of_another_namespace_says_where_its_messages_go(recording,
 
 
 def test_a_replay_cut_short_exits_1_unless_looping():
-    # a review: `hydromon replay F` stopped by Ctrl-C after 3 s of 20 exited 0, so a script's
-    # `replay && evaluate` went on as if the whole record had been sent
+    # `hydromon replay F` stopped by Ctrl-C after 3 s of 20 exits 1, so a script's
+    # `replay && evaluate` does not go on as if the whole record had been sent
     from hydromon.bus.replay import ReplayStats
     from hydromon.cli.commands.replay import exit_code
 

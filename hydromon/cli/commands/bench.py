@@ -15,7 +15,7 @@ def add_arguments(parser) -> None:
                         help="small sizes (CI, tests; live: one step of the first rig count, <= 3 s); rougher numbers")
     parser.add_argument("--no-live", action="store_true", help="skip the live sim + monitor step-up")
     parser.add_argument("--live-seconds", type=float, default=10.0, metavar="S",
-                        help="window per rig count of the live step-up [s] (default 10; the issue's figure: 60)")
+                        help="window per rig count of the live step-up [s] (default 10; docs/performance.md: 60)")
     parser.add_argument("--live-rigs", default=None, metavar="N,N,...",
                         help="rig counts of the live step-up (default 100,200,500,1000,2000,5000)")
     parser.add_argument("--history", default=None, metavar="FILE",

@@ -1,4 +1,4 @@
-"""The performance figures of ``hydromon bench`` (issue 5), measured in one run.
+"""The performance figures of ``hydromon bench``, measured in one run (targets in docs/performance.md).
 
 Each ``bench_*`` function measures one figure and returns plain numbers; :func:`run_bench`
 collects them into a :class:`BenchResult` (present it with :func:`to_json` / the CLI's table).
@@ -17,7 +17,7 @@ core_batch
     figure is in the details).
 replay_direct
     A simulated recording of 10 rigs in an in-memory MCAP: read, decode, validate and grade as
-    fast as possible through ``hydromon.bus.monitor.MonitorCore`` (the ``replay --direct``
+    fast as possible through ``hydromon.engine.core.MonitorCore`` (the ``replay --direct``
     path); ``pydantic`` + ``Fleet.update`` alone is reported beside it.
 baseline_naive
     ``monitor.reference``: the same identification per sample in plain numpy (no numba, no

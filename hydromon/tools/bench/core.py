@@ -174,7 +174,7 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
 
     Two paths over the same ``hydromon sim --to-mcap``-style recording of ``n_rigs`` rigs:
     ``monitor_core`` (the headline): :func:`hydromon.store.mcap_read.read_recording` into
-    ``hydromon.bus.monitor.MonitorCore.process`` in chunks of 4096 messages, the path of
+    ``hydromon.engine.core.MonitorCore.process`` in chunks of 4096 messages, the path of
     ``hydromon replay --direct`` (edge validation, seq checks, Fleet.update, health payloads);
     ``pydantic``: ``Sample.model_validate_json`` per message into ``Fleet.update`` (no health
     payloads), used as the headline when there is no monitor node.

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 
-# issue 5's targets [samples/s; rigs at 100 Hz; share of the ceiling]
+# the performance targets [samples/s; rigs at 100 Hz; share of the ceiling] (docs/performance.md)
 TARGETS = {"core_single": 1e5, "core_batch": 1e6, "replay_direct": 1e5}
 LIVE_TARGET_RIGS = 1000
 CEILING_SHARE_TARGET = 0.5

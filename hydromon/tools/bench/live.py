@@ -183,8 +183,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
 def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, refine: int = 3) -> dict:
     """Step up the rig count until a step loses a sample or misses p99 < 50 ms, then bisect
     ``refine`` times between the last passing and the first failing count (to a multiple of
-    10; three halvings resolve 1000 passing and 2000 failing to 125 rigs, two left 250:
-    session 6's run stopped at "1250 failed" with 1000 its figure); the figure is the largest
+    10; three halvings resolve 1000 passing and 2000 failing to 125 rigs, where two would stop
+    at "1250 failed" with 1000 the figure); the figure is the largest
     passing step (``rigs`` None with a ``reason`` if none passes or the monitor node is missing)."""
     try:
         import hydromon.bus.monitor  # noqa: F401
