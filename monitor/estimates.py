@@ -27,6 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .fourth_difference import D4_VARIANCE_GAIN
 from .force_observer import N_OBS_PARAMS, N_PRIOR, PSI_NOM, REPORTED, both_signs, chamber_prior, solve_with_prior
 from .layout import (
     H_BC, H_H, H_OBS, N_LAGS, O_BC, O_NOISE, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_W,
@@ -226,7 +227,7 @@ def _force_noise(st, g_f, n):
     ``monitor.force_observer.force_noise_gram``: [F, sF, s^2F, sH]."""
     # each regressor's filter output in g_f: m s^2F, B sF, K F, psi4 sH (f_c's sign and the rest: none)
     S = np.zeros((n, n))
-    var1 = st[O_NOISE] / 70.0 * st[O_BC]
+    var1 = st[O_NOISE] / D4_VARIANCE_GAIN * st[O_BC]
     cols = (0, 1, 3, 7)
     gi = (2, 1, 0, 3)
     f = np.empty(4)
@@ -264,7 +265,7 @@ def chamber_estimate(st: np.ndarray, hyper: np.ndarray, g_c: np.ndarray, th: np.
     if hyper[H_BC] > 0.0:
         sc0 = THETA_NOM_C[0] / Y_NOM_C
         S = np.zeros((4, 4))
-        S[0, 0] = (st[O_NOISE + 1] * st[O_BC + 1] + st[O_NOISE + 2] * st[O_BC + 2]) / 70.0 \
+        S[0, 0] = (st[O_NOISE + 1] * st[O_BC + 1] + st[O_NOISE + 2] * st[O_BC + 2]) / D4_VARIANCE_GAIN \
             * g_c[1, 1] * sc0 * sc0
         t, c = _compensate(t, c, P, S)
     for i in range(4):

@@ -117,6 +117,7 @@ from .layout import (
     SG_HALF,
 )
 from .estimates import observer_refresh
+from .fourth_difference import D4_VARIANCE_GAIN
 from .force_observer import OBS_REFRESH, ne_new_transient, ne_update, obs_bank_init, obs_bank_step, obs_inputs, obs_row
 from .outlier_gate import gate_step
 from .scaling import THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F  # noqa: F401  (re-exported)
@@ -162,7 +163,7 @@ def _residual_stats(st, stream, e, lam):
 
 @njit(cache=True, error_model="numpy")
 def _noise_update(st, n, hyper):
-    # running mean of squared 4th differences: white noise of variance s^2 gives 70 s^2
+    # running mean of squared 4th differences: D4_VARIANCE_GAIN times the noise variance
     if n < 4:
         return
     cnt = st[O_NOISE_N] + 1.0
@@ -322,7 +323,7 @@ def _consume(st, rc, hyper, m_f, m_c, m_o, g_f, g_c, ug, x1, x3, x4, x5, work, b
     c1 = _ring(st, SG_HALF, 1)
     q1 = a1 * _ring(st, SG_HALF, 2) - a2 * _ring(st, SG_HALF, 3) - rc[C_FL]
     sg = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
-    v_noise = 3.0 * math.sqrt(st[O_NOISE] / 70.0 / (den * hyper[H_H] * hyper[H_H]))
+    v_noise = 3.0 * math.sqrt(st[O_NOISE] / D4_VARIANCE_GAIN / (den * hyper[H_H] * hyper[H_H]))
     if abs(v) < max(hyper[H_VSTICK], v_noise):
         st[O_SLOW] = 0.0
         st[O_REST] += 1.0
@@ -444,7 +445,7 @@ def _chambers_rest(st, hyper, yc, g_c):
         return False
     d = hyper[H_REST_DECAY]
     st[O_EXC_C] = d * st[O_EXC_C] + (1.0 - d) * (yc[0, 1] * yc[0, 1] + yc[1, 1] * yc[1, 1])
-    noise = g_c[1, 1] * (st[O_NOISE + 1] + st[O_NOISE + 2]) / 70.0  # 4th differences: 70 s^2
+    noise = g_c[1, 1] * (st[O_NOISE + 1] + st[O_NOISE + 2]) / D4_VARIANCE_GAIN
     return st[O_REST] >= hyper[H_REST] and st[O_EXC_C] <= REST_EXCITATION * noise
 
 

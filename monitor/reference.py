@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from monitor.fourth_difference import D4_VARIANCE_GAIN
 from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, OBS_REFRESH, PSI_NOM, REF_EVERY
 from monitor.ident_options import IdentOptions, Kernels
 from monitor.identify import REST_EXCITATION, V_MIN, THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
@@ -155,7 +156,7 @@ class NaiveIdentifier:
         self.res_hist[stream] = np.concatenate(([e], self.res_hist[stream][:-1]))
 
     def _noise_update(self) -> None:
-        # running mean of squared 4th differences (white noise of variance s^2 gives 70 s^2)
+        # running mean of squared 4th differences: D4_VARIANCE_GAIN times the noise variance
         if self.n - 1 < 4:
             return
         self.noise_n += 1.0
@@ -313,7 +314,7 @@ class NaiveIdentifier:
             return False
         d = math.exp(-self.h / self.options.rest_pause)
         self.exc_c = d * self.exc_c + (1.0 - d) * (yc[0, 1] ** 2 + yc[1, 1] ** 2)
-        noise = self._kernels.g_c[1, 1] * (self.noise[1] + self.noise[2]) / 70.0
+        noise = self._kernels.g_c[1, 1] * (self.noise[1] + self.noise[2]) / D4_VARIANCE_GAIN
         return self.rest >= self.rest_pause and self.exc_c <= REST_EXCITATION * noise
 
     def _force(self, n: int) -> None:
@@ -325,7 +326,7 @@ class NaiveIdentifier:
         c1, c3, c4 = (self._at(SG_HALF, ch) for ch in (1, 2, 3))
         q1 = c.A1 * c3 - c.A2 * c4 - c.F_L
         sg = float(np.sign(v))
-        v_noise = 3.0 * math.sqrt(self.noise[0] / 70.0 / ((j @ j) * self.h * self.h))
+        v_noise = 3.0 * math.sqrt(self.noise[0] / D4_VARIANCE_GAIN / ((j @ j) * self.h * self.h))
         still = abs(v) < max(o.v_stick, v_noise)
         self.slow = 0.0 if still else self.slow + 1.0
         self.rest = self.rest + 1.0 if still else 0.0

@@ -33,6 +33,7 @@ from numba import njit
 from scipy.optimize import least_squares
 
 from hydromon.contract import PARAM_NAMES
+from monitor.fourth_difference import CHI2_1_MEDIAN, D4_VARIANCE_GAIN
 from monitor.ident_options import IdentOptions
 from monitor.outlier_gate import gated
 from plant_sim.model import derivatives
@@ -191,10 +192,10 @@ def innovations(meas, ug, th, base, h, sig, q, n0, jump):
 
 def sensor_noise(samples: np.ndarray) -> np.ndarray:
     """White-noise rms of x1 [m], x3 [Pa], x4 [Pa], x5 [m] from 4th differences of a record
-    (N, 5) = ug, x1, x3, x4, x5 (a 4th difference of white noise has variance 70 s^2; of the
-    smooth signal, little), floored at NOISE_FLOOR."""
+    (N, 5) = ug, x1, x3, x4, x5 (``monitor.fourth_difference``: the median of the squared 4th
+    differences, so transients do not count), floored at NOISE_FLOOR."""
     d4 = np.diff(samples[:, 1:5], n=4, axis=0)
-    est = np.sqrt(np.median(d4 ** 2, axis=0) / 70.0 / 0.4549)  # median of chi2(1) = 0.4549
+    est = np.sqrt(np.median(d4 ** 2, axis=0) / D4_VARIANCE_GAIN / CHI2_1_MEDIAN)
     return np.maximum(est, NOISE_FLOOR)
 
 

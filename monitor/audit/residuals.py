@@ -48,6 +48,7 @@ from scipy.signal import savgol_filter
 
 from hydromon.contract import RigConfig
 
+from ..fourth_difference import CHI2_1_MEDIAN, D4_VARIANCE_GAIN
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
@@ -152,10 +153,10 @@ def signals(samples: np.ndarray, h: float) -> Signals:
     if not (h > 0 and math.isfinite(h)):
         raise ValueError(f"sample period must be > 0, got {h!r}")
     ug, x1, x3, x4, x5 = (s[:, i].copy() for i in range(5))
-    # noise from 4th differences (white noise of variance s^2 gives 70 s^2; the median of
-    # chi2(1) is 0.455 times its mean, and the median ignores transients)
+    # noise from the median of squared 4th differences (monitor.fourth_difference; the median
+    # ignores transients)
     d4 = np.diff(s[:, 1:], 4, axis=0)
-    sigma = np.sqrt(np.median(d4 * d4, axis=0) / 70.0 / 0.455)
+    sigma = np.sqrt(np.median(d4 * d4, axis=0) / D4_VARIANCE_GAIN / CHI2_1_MEDIAN)
     imp = np.zeros(4 * SG_WINDOW)
     imp[2 * SG_WINDOW] = 1.0
     gain = np.array([float(np.sqrt(np.sum(_sg(imp, k, h) ** 2))) for k in range(3)])
