@@ -10,8 +10,9 @@ only the valve's low-frequency response, which any input identifies, while omega
 excitation near the valve's bandwidth. A record that starts mid-run on a smooth input has none
 (omega^2 and K_sv omega^2 off by the same factor: a true 1.2 read 1.6-3.6 joining 3 s in,
 README), so grading K_sv is what still sees a valve that lost gain. It comes from rows of its
-own (the continuous-time valve equation under the force SVF, ``monitor.identify._static_gain_rows``),
-not from the ARX's DC gain, which x1's noise biased at stress noise.
+own (the continuous-time valve equation under the force SVF,
+``monitor.equation_rows.static_gain_rows``), not from the ARX's DC gain, which x1's noise
+biases at stress noise.
 
 Standard errors: sigma^2 kappa P, with sigma^2 the residual variance and kappa the
 long-run variance factor 1 + 2 sum_j w_j rho_j of the residuals (Bartlett weights over
@@ -28,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from .fourth_difference import D4_VARIANCE_GAIN
+from .ident_model import IdentModel
 from .force_observer import N_OBS_PARAMS, N_PRIOR, PSI_NOM, REPORTED, both_signs, chamber_prior, solve_with_prior
 from .layout import (
     H_BC, H_H, H_OBS, N_LAGS, O_BC, O_NOISE, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2, O_RES_W,
@@ -151,8 +153,8 @@ def _valve_jacobian(th: np.ndarray, h: float, phys: np.ndarray, J: np.ndarray) -
     """d[2 zeta omega, omega^2, K_sv omega^2] / d[a1, a2, b0, b1, b2] (3, 5) at ``th`` (phys =
     valve_physical(th, h)), analytically: 2 zeta omega = -ln(a2) / h in both pole cases; omega^2 =
     (ln^2 r + acos^2 c) / h^2 with r = sqrt(a2), c = -a1 / (2 r) for complex poles, ln z_a ln z_b / h^2
-    for real ones. It replaced central differences (ten evaluations with logs and acos, a third of
-    the valve's read-out); a test holds the two equal. NaN where the poles are repeated or on the
+    for real ones: central differences would take ten evaluations with logs and acos, a third of
+    the valve's read-out, and a test holds the two equal. NaN where the poles are repeated or on the
     unit circle's edge (c = +-1), where neither is defined."""
     J[:, :] = np.nan
     a1, a2 = th[0], th[1]
@@ -200,15 +202,15 @@ def _valve_jacobian(th: np.ndarray, h: float, phys: np.ndarray, J: np.ndarray) -
 @njit(cache=True, error_model="numpy")
 def _valve_se(var: float) -> float:
     """SE from a quadratic form of the valve IV's symmetrised P: the IV's P is not a covariance
-    and, symmetrised, can be indefinite (seen on records that start mid-run with steps in ug:
-    an eigenvalue of -576). A form <= 0 then says nothing: unknown (inf), not 0, which claimed
-    an exact estimate (omega^2 +241 % off with SE 0 on one mid-run random rig)."""
+    and, symmetrised, can be indefinite (records that start mid-run with steps in ug give
+    eigenvalues down to -576). A form <= 0 then says nothing: unknown (inf), not 0, which would
+    claim an exact estimate (omega^2 +241 % off with SE 0 on one mid-run random rig)."""
     return math.sqrt(var) if var > 0.0 else np.inf
 
 
 @njit(cache=True, error_model="numpy")
 def _static_gain(st: np.ndarray) -> tuple[float, float]:
-    """K_sv [m/V] and its SE from the static-gain rows (monitor.identify._static_gain_rows);
+    """K_sv [m/V] and its SE from the static-gain rows (monitor.equation_rows.static_gain_rows);
     NaN / inf before they have any."""
     if not st[O_ROWS_K] > 3:
         return np.nan, np.inf
@@ -253,20 +255,21 @@ OBS_MARGIN = 1.75
 
 
 @njit(cache=True, error_model="numpy")
-def chamber_estimate(st: np.ndarray, hyper: np.ndarray, g_c: np.ndarray, th: np.ndarray, cov: np.ndarray) -> bool:
-    """The chamber parameters (1/beta_e, theta, C_ip, C_ep) into th (4,) and their covariance into
-    cov (4, 4), physical units, bias-compensated. False if the residual variance is not known yet
+def chamber_estimate(st: np.ndarray, model: IdentModel, th: np.ndarray, cov: np.ndarray) -> bool:
+    """The chamber parameters 1/beta_e [1/Pa], theta [m^2.5/kg^0.5], C_ip, C_ep [m^3/(s Pa)] into
+    th (4,) and their covariance into cov (4, 4) [products of those units], bias-compensated, from
+    the state row ``st`` (``monitor.layout``). False if the residual variance is not known yet
     (cov is then the unscaled P)."""
     t = st[O_TH_C:O_TH_C + 4].copy()
     P = st[O_P_C:O_P_C + 16].reshape((4, 4)).copy()
     s2, kap = _sigma2_kappa(st, (1, 2), 4)
     fin = math.isfinite(s2)
     c = P * (s2 * kap) if fin else P.copy()
-    if hyper[H_BC] > 0.0:
+    if model.hyper[H_BC] > 0.0:
         sc0 = THETA_NOM_C[0] / Y_NOM_C
         S = np.zeros((4, 4))
         S[0, 0] = (st[O_NOISE + 1] * st[O_BC + 1] + st[O_NOISE + 2] * st[O_BC + 2]) / D4_VARIANCE_GAIN \
-            * g_c[1, 1] * sc0 * sc0
+            * model.g_c[1, 1] * sc0 * sc0
         t, c = _compensate(t, c, P, S)
     for i in range(4):
         th[i] = t[i] * THETA_NOM_C[i]
@@ -276,7 +279,7 @@ def chamber_estimate(st: np.ndarray, hyper: np.ndarray, g_c: np.ndarray, th: np.
 
 
 @njit(cache=True, error_model="numpy")
-def plain_force(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray):
+def plain_force(st: np.ndarray, model: IdentModel):
     """The plain force balance's (m, B + f_v, f_c, K_t, F_0) and their covariance, scaled,
     bias-compensated; fin False while the residual variance is not known (cov is then inf)."""
     th = st[O_TH_F:O_TH_F + 5].copy()
@@ -284,8 +287,8 @@ def plain_force(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray):
     s2, kap = _sigma2_kappa(st, (0,), 5)
     fin = math.isfinite(s2)
     cov = P * (s2 * kap) if fin else P * np.inf
-    if hyper[H_BC] > 0.0:
-        S = _force_noise(st, g_f, 5)
+    if model.hyper[H_BC] > 0.0:
+        S = _force_noise(st, model.g_f, 5)
         if fin:
             th, cov = _compensate(th, cov, P, S)
         else:
@@ -295,7 +298,7 @@ def plain_force(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray):
 
 
 @njit(cache=True, error_model="numpy")
-def observer_refresh(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarray) -> None:
+def observer_refresh(st: np.ndarray, model: IdentModel) -> None:
     """Solve the force balance with observed pressures (monitor.force_observer) with the chamber
     estimate as the prior on psi, and keep its B + f_v and f_c and their variances in the state
     (OBS_SOL, scaled; all 0 when there is no solution: the state stays finite).
@@ -310,20 +313,20 @@ def observer_refresh(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np
         return
     cp = np.empty(4)
     ccov = np.empty((4, 4))
-    if not chamber_estimate(st, hyper, g_c, cp, ccov):
+    if not chamber_estimate(st, model, cp, ccov):
         return
     # the prior: psi from the chamber estimate, F_0 from the plain force balance's
     mu = np.zeros(N_PRIOR)
     c = np.zeros((N_PRIOR, N_PRIOR))
     if not chamber_prior(cp, ccov, mu[:4], c[:4, :4]):
         return
-    thf, covf, fin = plain_force(st, hyper, g_f)
+    thf, covf, fin = plain_force(st, model)
     if not (fin and covf[4, 4] > 0.0):
         return
     mu[4] = thf[4]
     c[4, 4] = covf[4, 4]
     _, kap = _sigma2_kappa(st, (4,), 4)
-    S = _force_noise(st, g_f, N_OBS_PARAMS) if hyper[H_BC] > 0.0 else np.zeros((N_OBS_PARAMS, N_OBS_PARAMS))
+    S = _force_noise(st, model.g_f, N_OBS_PARAMS) if model.hyper[H_BC] > 0.0 else np.zeros((N_OBS_PARAMS, N_OBS_PARAMS))
     th = np.empty(N_OBS_PARAMS)
     var = np.empty(4)
     if not solve_with_prior(st, S, st[O_BC], kap, mu, c, th, var):
@@ -351,15 +354,16 @@ def _observed_force(st, params, se):
 
 
 @njit(cache=True, error_model="numpy")
-def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarray,
-              params: np.ndarray, se: np.ndarray) -> None:
-    """Write the 12 physical parameters (PARAM_NAMES) and their standard errors (NaN/inf where unknown)."""
+def estimates(st: np.ndarray, model: IdentModel, params: np.ndarray, se: np.ndarray) -> None:
+    """Read the state row ``st`` (``monitor.layout``) out into params (N_PARAMS,) in PARAM_NAMES
+    order [SI, the units of the module docstring] and their standard errors se (N_PARAMS,) [same
+    units]; NaN / inf where unknown."""
+    hyper = model.hyper
     params[:] = np.nan
     se[:] = np.inf
-    bc = hyper[H_BC] > 0.0
     # force balance
     if st[O_ROWS] > 4:
-        th, cov, fin = plain_force(st, hyper, g_f)
+        th, cov, fin = plain_force(st, model)
         for i in range(4):
             params[i] = th[i] * THETA_NOM_F[i]
             se[i] = math.sqrt(max(cov[i, i], 0.0)) * THETA_NOM_F[i] if fin else np.inf
@@ -367,7 +371,7 @@ def estimates(st: np.ndarray, hyper: np.ndarray, g_f: np.ndarray, g_c: np.ndarra
     if st[O_ROWS + 1] > 4:
         th = np.empty(4)
         cov = np.empty((4, 4))
-        fin = chamber_estimate(st, hyper, g_c, th, cov)
+        fin = chamber_estimate(st, model, th, cov)
         for i in range(4):
             params[4 + i] = th[i]
             se[4 + i] = math.sqrt(max(cov[i, i], 0.0)) if fin else np.inf

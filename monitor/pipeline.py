@@ -21,8 +21,11 @@ from hydromon.contract import PARAM_NAMES
 from hydromon.contract import SENSORS
 from hydromon.contract import RigConfig
 
-from .fleet_kernel import N_P, _run, assess_rig, partition_rigs, pipeline_step
+from .fleet_kernel import (
+    N_P, Arrivals, EventArrays, FleetRows, Grading, assess_rig, partition_rigs, pipeline_step, run_part,
+)
 from .grading import Ranges, grade_kernel
+from .ident_model import IdentModel
 from .ident_options import IdentOptions, Kernels, new_state, reset_signals, rig_constants
 from .layout import O_CLAMPED, O_OUTLIERS, RIG_CONST_SIZE, STATE_SIZE
 from .plausibility import any_impossible, implausible_names
@@ -115,8 +118,9 @@ class Events:
 
     @staticmethod
     def of_kernel(arrays) -> Events:
-        """Events from the kernel's event arrays (owned by the caller; the kernel leaves rows with
-        physically impossible estimates ungraded: level -1, confidence 0, grades -1)."""
+        """Events from the kernel's event arrays (``EventArrays``, same fields in the same order;
+        the kernel leaves rows with physically impossible estimates ungraded: level -1, confidence
+        0, grades -1)."""
         return Events(*arrays)
 
 
@@ -180,11 +184,13 @@ class Fleet:
         self._bind()
 
     def _bind(self) -> None:
-        """The kernel's fixed arguments (rebuilt when the state arrays are reallocated)."""
-        k, ra = self._k, self._ra
-        self._args = (self.states, self.consts, self.counts, self.phase, self.bands, k.hyper, k.m_f, k.m_c, k.m_o, k.g_f, k.g_c,
-                      float(self.options.min_rows), self.eval_every, ra.index, ra.sign, ra.edges, ra.margins,
-                      self.grade_z)
+        """The kernels' fixed arguments (rebuilt when the per-rig arrays are reallocated)."""
+        ra = self._ra
+        self._rows = FleetRows(self.states, self.consts, self.counts, self.phase, self.bands)
+        self._model = IdentModel.of(self._k)
+        self._grading = Grading(ra.index, ra.sign, ra.edges, ra.margins, self.grade_z, float(self.options.min_rows))
+        # pipeline_step's leading arguments: the records' fields, in its order
+        self._fields = (*self._rows, *self._model, *self._grading, self.eval_every)
 
     @property
     def graded(self) -> tuple:
@@ -271,7 +277,7 @@ class Fleet:
             return self._update_parallel(rig, samples, cap)
         if cap > self._ev_cap:
             self._alloc_events(cap)
-        n = pipeline_step(*self._args, rig, samples, *self._ev)
+        n = pipeline_step(*self._fields, rig, samples, *self._ev)
         if n == 0:
             return self._no_events
         return Events.of_kernel([v[:n].copy() for v in self._ev])
@@ -283,10 +289,10 @@ class Fleet:
         if self._pool is None:
             self._pool = ThreadPoolExecutor(t - 1, thread_name_prefix="fleet")
         order, start = partition_rigs(rig, t, len(self.ids))
-        args = self._args + (rig, samples) + self._ev
+        args = (self._rows, self._model, self._grading, self.eval_every, Arrivals(rig, samples), self._ev)
 
         def part(k):
-            return _run(order, start[k], start[k + 1], *args, k * cap) - k * cap
+            return run_part(order, start[k], start[k + 1], *args, k * cap) - k * cap
 
         futures = [self._pool.submit(part, k) for k in range(1, t)]
         n_ev = [part(0)] + [f.result() for f in futures]
@@ -294,7 +300,7 @@ class Fleet:
             return self._no_events
         take = np.concatenate([np.arange(k * cap, k * cap + n_ev[k]) for k in range(t)])
         # each part's events are in arrival order; merge them into the serial path's order
-        take = take[np.argsort(self._ev[1][take], kind="stable")]
+        take = take[np.argsort(self._ev.sample[take], kind="stable")]
         return Events.of_kernel([v[take] for v in self._ev])
 
     def __getstate__(self) -> dict:
@@ -306,10 +312,11 @@ class Fleet:
         # reused between calls: a sample's call allocates nothing until it has events to return
         cap = max(cap, 2 * self._ev_cap)
         ng = len(self._ra.index)
-        self._ev = (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
-                    np.empty(cap, np.int64), np.empty(cap), np.empty((cap, N_P)), np.empty((cap, N_P)),
-                    np.empty((cap, ng), np.int64), np.empty(cap, np.bool_), np.empty(cap, np.int64),
-                    np.empty(cap, np.bool_))
+        self._ev = EventArrays(
+            rig=np.empty(cap, np.int64), sample=np.empty(cap, np.int64), counts=np.empty(cap, np.int64),
+            level=np.empty(cap, np.int64), confidence=np.empty(cap), params=np.empty((cap, N_P)),
+            std_errors=np.empty((cap, N_P)), grades=np.empty((cap, ng), np.int64), converged=np.empty(cap, np.bool_),
+            clamped=np.empty(cap, np.int64), implausible=np.empty(cap, np.bool_))
         self._ev_cap = cap
 
     def glitches(self, rig: int) -> dict[str, int]:
@@ -331,16 +338,14 @@ class Fleet:
         """Evaluate one rig now (does not move its hysteresis state)."""
         p = np.empty((1, N_P))
         s = np.empty((1, N_P))
-        k, ra = self._k, self._ra
-        conv = np.array([assess_rig(self.states[rig], k.hyper, k.g_f, k.g_c, float(self.options.min_rows),
-                                    p[0], s[0])])
+        g = self._grading
+        conv = np.array([assess_rig(self.states[rig], self._model, g.min_rows, p[0], s[0])])
         bad = np.array([any_impossible(p[0], s[0])])
         band = self.bands[rig:rig + 1].copy()
-        level, grades, conf = grade_kernel(p, s, conv & ~bad, ra.index, ra.sign, ra.edges, ra.margins,
-                                           self.grade_z, band)
+        level, grades, conf = grade_kernel(p, s, conv & ~bad, g.index, g.sign, g.edges, g.margins, g.z, band)
         one = Events.of_kernel([np.array([rig]), np.array([-1]), self.counts[rig:rig + 1].copy(), level, conf, p, s,
                                 grades, conv, np.array([self.x1_clamped(rig)]), bad])
-        return one.assessment(0, ra.names)
+        return one.assessment(0, self._ra.names)
 
 
 class Pipeline:

@@ -23,7 +23,9 @@ import numpy as np
 from monitor.fourth_difference import D4_VARIANCE_GAIN
 from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, OBS_REFRESH, PSI_NOM, REF_EVERY
 from monitor.ident_options import IdentOptions, Kernels
-from monitor.identify import REST_EXCITATION, V_MIN, THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
+from monitor.ident_model import IdentModel
+from monitor.identify import REST_EXCITATION, V_MIN
+from monitor.scaling import THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
 from monitor.ident_options import STEP_GUARD
 from monitor.layout import (
     N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
@@ -448,8 +450,7 @@ class NaiveIdentifier:
             from monitor.estimates import observer_refresh
 
             st = self.state_row()
-            k = self._kernels
-            observer_refresh(st, k.hyper, k.g_f, k.g_c)
+            observer_refresh(st, IdentModel.of(self._kernels))
             self.obs_sol = st[O_OBS_SOL:O_OBS_SOL + 4].copy()
 
     # -- read-out ---------------------------------------------------------------------------
@@ -507,8 +508,7 @@ class NaiveIdentifier:
         from monitor.estimates import estimates
         from monitor.identify import N_PARAMS
 
-        k = self._kernels
         p = np.empty(N_PARAMS)
         s = np.empty(N_PARAMS)
-        estimates(self.state_row(), k.hyper, k.g_f, k.g_c, p, s)
+        estimates(self.state_row(), IdentModel.of(self._kernels), p, s)
         return p, s

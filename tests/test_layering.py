@@ -34,7 +34,7 @@ ONLY_IN = {
 }
 MAX_LINES = 450
 # modules still over MAX_LINES, each to be split by idea (the kernels' readability work)
-OVER_LIMIT = {"monitor/reference.py", "monitor/identify.py", "monitor/audit/residuals.py"}
+OVER_LIMIT = {"monitor/reference.py", "monitor/audit/residuals.py"}
 
 
 def _modules() -> dict[str, Path]:
