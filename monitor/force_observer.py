@@ -38,11 +38,11 @@ rest on a leakage flow left a transient e^(-w_c t) of 5000 N at 0.5 s (measured,
 ``identify`` feeds this row on exactly the plain force balance's rows (the same reversal guard and
 warm-up) into normal equations A = sum phi phi', b = sum phi y (forgetting-weighted), not an RLS:
 alone, the eight parameters are nearly collinear (the free fit is 40-70 % off on B + f_v even
-noise-free) and an RLS's covariance update lost the information in exactly the directions the
+noise-free) and an RLS's covariance update loses the information in exactly the directions the
 prior has to fix (B + f_v 30 % off with a small SE, measured); the normal equations keep it
 exact. The read-out (``solve_with_prior``) adds the chamber estimate as a prior on psi (its
 covariance mapped by the delta method). Measured in batch on the paper's input, 10 s,
-realistic noise, 40 seeds (prototype, README): B + f_v 0.91 % mean absolute error against 3.49 %
+realistic noise, 40 seeds (README): B + f_v 0.91 % mean absolute error against 3.49 %
 for the plain force balance, f_c 21 % against 86 %; w_c = 2 rad/s is where the pressure noise
 (45 N white on the force) and the x5 noise (0.5 um, integrated through the flow law) cost alike.
 """
@@ -109,8 +109,8 @@ def obs_bank_step(m: np.ndarray, st: np.ndarray, base: int, u: np.ndarray, y: np
     force SVF, so the observer's outputs stay aligned with the force rows. ``hold``: the states
     stay as they are (only the input history moves). The first two steps after a start cover the
     two intervals before the first sample; the row's identity needs the flows' integral to start
-    where Fm's and Lc's rest ends. Stepped there, the flow filters gave B + f_v 30 % off (their
-    integral gained 2 h g(0), ~80 N decaying as e^(-w_c t), from the leakage flow), and Fm's
+    where Fm's and Lc's rest ends. Stepped there, the flow filters give B + f_v 30 % off (their
+    integral gains 2 h g(0), ~80 N decaying as e^(-w_c t), from the leakage flow), and Fm's
     filter, fed the cubic's pre-start wiggle, still 1 % off noise-free; held, 0.03 %.
     """
     for i in range(N_OBS):
@@ -211,7 +211,7 @@ def _step_one(m, st, u, y):
 N_OBS_PARAMS = 10  # m, B + f_v, f_c, K_t, psi1..psi4, F_0, the start transient's amplitude (last)
 FREE = (0, 1, 2, 3, 9)  # the parameters without a prior (m, B + f_v, f_c, K_t and the transient's)
 # with a prior: psi (4..7) from the chamber estimate, F_0 (8) from the plain force balance's (it
-# is that balance's constant too; fitted freely here it cost B + f_v 0.93 -> 1.00 % at realistic noise)
+# is that balance's constant too; fitted freely here it costs B + f_v 0.93 -> 1.00 % at realistic noise)
 N_PRIOR = 5
 # the entries the read-out reports (B + f_v, f_c; monitor.estimates says why not m and K_t)
 REPORTED = (1, 2)
@@ -225,8 +225,8 @@ OBS_REFRESH = 32  # rows between the solutions the per-sample kernel keeps (OBS_
 def both_signs(st: np.ndarray) -> bool:
     """Whether the rows have seen the piston go both ways (REF_EVERY rows each): before that
     f_c sign(x2) and the constant force F_0 are one column, so the plain balance's F_0, which the
-    reference fit and the solution take, is not yet determined (with F_0 fitted freely here the
-    first reference put f_c at 515 N and 2,723 N in two exact implementations)."""
+    reference fit and the solution take, is not yet determined (with F_0 fitted freely here, two
+    exact implementations put the first reference's f_c at 515 N and 2,723 N)."""
     return st[O_OBS_SGN] >= REF_EVERY and st[O_OBS_SGN + 1] >= REF_EVERY
 
 

@@ -1,17 +1,16 @@
 """The naive baseline of ``hydromon bench``: the identifier written the straightforward way.
 
-One rig, one Python call per sample, numpy on small arrays: every state-variable filter is
-``y = Cd x + Dd u; x = Ad x + Bd u`` with matrix products, every RLS/RIV update is the
-textbook ``K = P phi / (lam + phi' P phi)`` with ``np.outer``; no numba, no batching, no flat
-state row. It implements the same algorithm as ``monitor.identify.identify_step`` (see that
-module for the equations: SVF + RLS for the force and chamber equations, ARX + recursive IV
-for the valve, the online noise estimate and the residual statistics), so its throughput is
-an honest "what the compiled, batched kernel buys" reference; a test pins its estimates to
-the compiled path's.
+One rig, one Python call per sample, numpy on small arrays: every state-variable filter a
+matrix product, every RLS/RIV update the textbook ``K = P phi / (lam + phi' P phi)`` with
+``np.outer`` (``monitor.textbook``); no numba, no batching, no flat state row. It implements
+the same algorithm as ``monitor.identify.identify_step`` (see that module for the equations:
+SVF + RLS for the force and chamber equations, ARX + recursive IV for the valve, the online
+noise estimate and the residual statistics), so its throughput is an honest "what the
+compiled, batched kernel buys" reference; a test pins its estimates to the compiled path's.
 
 Only the per-sample identification is re-written here: ``estimates()`` packs the state into
-``monitor.layout``'s row and reads it out with ``monitor.estimates.estimates`` (the read-out
-runs once per evaluation, not per sample).
+``monitor.layout``'s row (``monitor.reference_state``) and reads it out with
+``monitor.estimates.estimates`` (the read-out runs once per evaluation, not per sample).
 """
 
 from __future__ import annotations
@@ -20,35 +19,19 @@ import math
 
 import numpy as np
 
-from monitor.fourth_difference import D4_VARIANCE_GAIN
-from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, OBS_REFRESH, PSI_NOM, REF_EVERY
-from monitor.ident_options import IdentOptions, Kernels
-from monitor.ident_model import IdentModel
-from monitor.identify import REST_EXCITATION, V_MIN
-from monitor.scaling import THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
-from monitor.ident_options import STEP_GUARD
-from monitor.layout import (
-    N_CH, N_LAGS, N_OBS, N_STREAMS, O_BC, O_CLAMPED, O_GATE, O_GATE_HAS, O_GATE_N, O_GATE_S, O_N, O_NE_A, O_NE_B,
-    O_NE_YY, O_OBS_IC, O_OBS_IN, O_OBS_KL, O_OBS_SOL, O_P_K, O_ROWS_K, O_SINCE_STEP, O_SVF_K, O_TH_K, O_OUTLIERS, O_NOISE, O_NOISE_N, O_P_C, O_P_F, O_P_V, O_RES_COV, O_RES_E2,
-    O_RES_HIST, O_RES_W, O_RING, O_ROWS, O_REST, O_EXC_C, O_OBS_STEP, O_ROWS_O, O_OBS_SGN, O_SLOW, O_SVF_C, O_SVF_F, O_SVF_O, O_TH_C, O_TH_F, O_TH_O,
-    O_TH_V, O_XH, OBS_ORDER, OBS_STATE, RING, SG_HALF, STATE_SIZE, SVF_STATE,
-)
 from hydromon.contract import RigConfig
+from monitor.estimates import estimates, observer_refresh
+from monitor.force_observer import FREE, IC_NOM, N_OBS_PARAMS, OBS_REFRESH, PSI_NOM, REF_EVERY
+from monitor.fourth_difference import D4_VARIANCE_GAIN
+from monitor.ident_model import IdentModel
+from monitor.ident_options import STEP_GUARD, IdentOptions, Kernels
+from monitor.identify import N_PARAMS, REST_EXCITATION, V_MIN
+from monitor.layout import N_CH, N_LAGS, N_OBS, N_STREAMS, O_OBS_SOL, OBS_ORDER, OBS_STATE, RING, SG_HALF, SVF_STATE
+from monitor.reference_state import pack_state
+from monitor.scaling import THETA_NOM_C, THETA_NOM_F, THETA_NOM_K, X5_NOM, Y_NOM_C, Y_NOM_F
+from monitor.textbook import orifice_z, riv, rls, svf_init, svf_step
 
 __all__ = ["NaiveIdentifier"]
-
-
-def _orifice_z(xv: float, p1: float, p2: float, ps: float) -> tuple[float, float]:
-    """plant_sim.model.orifice_z in plain Python [Pa^0.5]."""
-    if xv >= 0.0:
-        return math.sqrt(2.0 * abs(ps - p1)) * np.sign(ps - p1), math.sqrt(2.0 * abs(p2))
-    return math.sqrt(2.0 * abs(p1)), math.sqrt(2.0 * abs(ps - p2)) * np.sign(ps - p2)
-
-
-def _forget(P: np.ndarray, lam: float, p_max: float) -> np.ndarray:
-    if lam < 1.0 and np.trace(P) * (1.0 / lam) <= p_max:
-        return P * (1.0 / lam)
-    return P
 
 
 class NaiveIdentifier:
@@ -113,7 +96,7 @@ class NaiveIdentifier:
         self.obs_ic = 0.0
         self.obs_kl = 0.0
         self.obs_sol = np.zeros(4)  # the latest solution's B + f_v, f_c and variances (monitor.estimates)
-        # the valve's static gain (monitor.identify._static_gain_rows)
+        # the valve's static gain (monitor.equation_rows.static_gain_rows)
         self.svf_k = np.zeros((2, SVF_STATE))
         self.th_k, self.P_k = np.zeros(3), np.eye(3) * o.p0
         self.rows_k = 0.0
@@ -124,32 +107,6 @@ class NaiveIdentifier:
 
     def _at(self, lag: int, ch: int) -> float:
         return self.ring[(self.n - 1 - lag) % RING, ch]
-
-    def _rls(self, theta, P, phi, y, lam):
-        """Textbook RLS with a symmetrised P; returns (theta, P, e) or e = nan for a bad row."""
-        if not (np.all(np.isfinite(phi)) and math.isfinite(y)):
-            return theta, P, math.nan
-        Pphi = P @ phi
-        K = Pphi / (lam + phi @ Pphi)
-        e = y - phi @ theta
-        theta = theta + K * e
-        P = P - np.outer(K, Pphi)
-        P = 0.5 * (P + P.T)
-        return theta, _forget(P, lam, self.options.p_max), e
-
-    def _riv(self, theta, P, phi, z, y, lam):
-        """Recursive IV with instrument z; returns (theta, P, e) or e = nan for a bad row."""
-        if not (np.all(np.isfinite(phi)) and math.isfinite(y) and np.all(np.isfinite(z))):
-            return theta, P, math.nan
-        Pz = P @ z
-        denom = lam + phi @ Pz
-        if not abs(denom) > 1e-300:
-            return theta, P, math.nan
-        e = y - phi @ theta
-        K = Pz / denom
-        theta = theta + K * e
-        P = P - np.outer(K, phi @ P)
-        return theta, _forget(P, lam, self.options.p_max), e
 
     def _residual(self, stream: int, e: float, lam: float) -> None:
         self.res_w[stream] = lam * self.res_w[stream] + 1.0
@@ -169,17 +126,6 @@ class NaiveIdentifier:
         if self.noise_n > 50.0:
             v = np.where(v > 100.0 * self.noise, 100.0 * self.noise, v)
         self.noise = self.noise + w * (v - self.noise)
-
-    @staticmethod
-    def _svf(mats, x, u):
-        phi, g = mats
-        y = phi @ x[:3] + g @ np.array([x[3], x[4], x[5], u])
-        return np.concatenate([y, x[4:6], [u]]), y
-
-    @staticmethod
-    def _svf_init(mats, u0):
-        phi, g = mats  # at rest: (I - Phi) x = G 1 u0
-        return np.concatenate([np.linalg.solve(np.eye(3) - phi, g.sum(axis=1) * u0), [u0, u0, u0]])
 
     def _valve(self) -> None:
         c, o = self.config, self.options
@@ -202,7 +148,7 @@ class NaiveIdentifier:
         step = abs(self._at(0, 0) - 2.0 * self._at(1, 0) + self._at(2, 0)) > o.step_tol
         if step:
             return
-        self.th_v, self.P_v, e = self._riv(self.th_v, self.P_v, phi, z, y, o.lam)
+        self.th_v, self.P_v, e = riv(self.th_v, self.P_v, phi, z, y, o.lam, o.p_max)
         if math.isfinite(e):
             self.rows[2] += 1.0
             self._residual(3, y - phi @ self.th_v, o.lam)
@@ -275,7 +221,7 @@ class NaiveIdentifier:
             self.clamped += 1.0
             r1, r2 = max(r1, V_MIN - 1.0), max(r2, V_MIN - 1.0)
         w1, w2 = 1.0 / (1.0 + r1), 1.0 / (1.0 + r2)
-        z1, z2 = _orifice_z(x5, x3, x4, c.p_s)
+        z1, z2 = orifice_z(x5, x3, x4, c.p_s)
         u_c = np.array([x3, x4, math.log1p(r1), math.log1p(r2),
                         w1 * x5 * z1, w2 * x5 * z2, w1 * (x3 - x4), w2 * (x3 - x4), w1 * x3, w2 * x4])
         if o.pressure_observer:  # the observer's inputs at this sample, kept for the force rows' instant
@@ -284,17 +230,17 @@ class NaiveIdentifier:
                    -(x3 - x4) * (g1 + g2), -(g1 * x3 - g2 * x4)]
             self.obs_in = np.vstack(([new], self.obs_in[:-1]))
         if n == 0:
-            self.svf_c = np.array([self._svf_init(self.c_mats, u) for u in u_c])
+            self.svf_c = np.array([svf_init(self.c_mats, u) for u in u_c])
         yc = np.empty((10, 3))
         for i in range(10):
-            self.svf_c[i], yc[i] = self._svf(self.c_mats, self.svf_c[i], u_c[i])
+            self.svf_c[i], yc[i] = svf_step(self.c_mats, self.svf_c[i], u_c[i])
         if n < self.warm or self._chambers_rest(yc):
             return
         lam2 = math.sqrt(o.lam)  # two rows per sample, each forgetting by sqrt(lam)
         s1 = THETA_NOM_C / Y_NOM_C
         phi = np.array([c.V10 * yc[0, 1], -yc[4, 0], yc[6, 0], yc[8, 0]]) * s1
         y = -c.V10 * yc[2, 1] / Y_NOM_C
-        self.th_c, self.P_c, e = self._rls(self.th_c, self.P_c, phi, y, lam2)
+        self.th_c, self.P_c, e = rls(self.th_c, self.P_c, phi, y, lam2, o.p_max)
         ok = math.isfinite(e)
         if ok:
             self.bc[1] = lam2 * self.bc[1] + c.V10 ** 2
@@ -302,7 +248,7 @@ class NaiveIdentifier:
             self._residual(1, y - phi @ self.th_c, lam2)
         phi = np.array([c.V20 * yc[1, 1], yc[5, 0], -yc[7, 0], yc[9, 0]]) * s1
         y = -c.V20 * yc[3, 1] / Y_NOM_C
-        self.th_c, self.P_c, e = self._rls(self.th_c, self.P_c, phi, y, lam2)
+        self.th_c, self.P_c, e = rls(self.th_c, self.P_c, phi, y, lam2, o.p_max)
         if ok and math.isfinite(e):
             self.rows[1] += 1.0
             self.bc[1] = lam2 * self.bc[1]
@@ -334,10 +280,10 @@ class NaiveIdentifier:
         self.rest = self.rest + 1.0 if still else 0.0
         u_f = np.array([c1, q1, sg])
         if n == 2 * SG_HALF:
-            self.svf_f = np.array([self._svf_init(self.f_mats, u) for u in u_f])
+            self.svf_f = np.array([svf_init(self.f_mats, u) for u in u_f])
         yf = np.empty((3, 3))
         for i in range(3):
-            self.svf_f[i], yf[i] = self._svf(self.f_mats, self.svf_f[i], u_f[i])
+            self.svf_f[i], yf[i] = svf_step(self.f_mats, self.svf_f[i], u_f[i])
         self._static_gain(n, c1)
         yo = self._observer_filters(n, c1, c3, c4, self._at(SG_HALF, 4)) if o.pressure_observer else None
         if n - 2 * SG_HALF < self.warm or self.slow < self.guard:
@@ -345,7 +291,7 @@ class NaiveIdentifier:
         # skipped while a reversal is inside the filter's memory
         phi = np.array([yf[0, 2], yf[0, 1], yf[2, 0], yf[0, 0], 1.0]) * THETA_NOM_F / Y_NOM_F
         y = yf[1, 0] / Y_NOM_F
-        self.th_f, self.P_f, e = self._rls(self.th_f, self.P_f, phi, y, o.lam)
+        self.th_f, self.P_f, e = rls(self.th_f, self.P_f, phi, y, o.lam, o.p_max)
         if math.isfinite(e):
             self.rows[0] += 1.0
             self.bc[0] = o.lam * self.bc[0] + 1.0
@@ -359,12 +305,12 @@ class NaiveIdentifier:
         c, o = self.config, self.options
         u = np.array([self._at(SG_HALF, 4), c.K_p * (self._at(SG_HALF, 0) - c.K_f * x1)])
         if n == 2 * SG_HALF:
-            self.svf_k = np.array([self._svf_init(self.f_mats, v) for v in u])
+            self.svf_k = np.array([svf_init(self.f_mats, v) for v in u])
             self.since_step = 0.0
             self.obs_step = float(self.obs_step_guard)
         yk = np.empty((2, 3))
         for i in range(2):
-            self.svf_k[i], yk[i] = self._svf(self.f_mats, self.svf_k[i], u[i])
+            self.svf_k[i], yk[i] = svf_step(self.f_mats, self.svf_k[i], u[i])
         d2 = self._at(SG_HALF - 1, 0) - 2.0 * self._at(SG_HALF, 0) + self._at(SG_HALF + 1, 0)
         self.since_step = 0.0 if abs(d2) > o.step_tol else self.since_step + 1.0
         self.obs_step = 0.0 if abs(d2) > o.step_tol else self.obs_step + 1.0
@@ -372,7 +318,7 @@ class NaiveIdentifier:
             return
         phi = np.array([yk[1, 0], -yk[0, 1], -yk[0, 2]]) * THETA_NOM_K / X5_NOM
         y = yk[0, 0] / X5_NOM
-        self.th_k, self.P_k, e = self._rls(self.th_k, self.P_k, phi, y, o.lam)
+        self.th_k, self.P_k, e = rls(self.th_k, self.P_k, phi, y, o.lam, o.p_max)
         if math.isfinite(e):
             self.rows_k += 1.0
             self._residual(5, y - phi @ self.th_k, o.lam)
@@ -383,7 +329,7 @@ class NaiveIdentifier:
         r1 = max(c.A1 * x1 / c.V10, V_MIN - 1.0)
         r2 = max(-c.A2 * x1 / c.V20, V_MIN - 1.0)
         v1, v2 = c.V10 * (1.0 + r1), c.V20 * (1.0 + r2)
-        z1, z2 = _orifice_z(x5, x3, x4, c.p_s)
+        z1, z2 = orifice_z(x5, x3, x4, c.p_s)
         u = np.array([c.A1 * x3 - c.A2 * x4 - c.F_L, c.A1 * math.log1p(r1) - c.A2 * math.log1p(r2),
                       x5 * (c.A1 * z1 / v1 + c.A2 * z2 / v2), -(x3 - x4) * (c.A1 / v1 + c.A2 / v2),
                       -(c.A1 * x3 / v1 - c.A2 * x4 / v2)])
@@ -447,8 +393,6 @@ class NaiveIdentifier:
             self._residual(4, y - ph @ self.th_o, o.lam)
         if self.rows_o % OBS_REFRESH == 0:
             # the solve with the chamber prior is read-out arithmetic: the shared one, on the packed state
-            from monitor.estimates import observer_refresh
-
             st = self.state_row()
             observer_refresh(st, IdentModel.of(self._kernels))
             self.obs_sol = st[O_OBS_SOL:O_OBS_SOL + 4].copy()
@@ -457,57 +401,10 @@ class NaiveIdentifier:
 
     def state_row(self) -> np.ndarray:
         """The state packed into ``monitor.layout``'s flat row (for the shared read-out)."""
-        st = np.zeros(STATE_SIZE)
-        st[O_N] = self.n
-        # the compiled kernel's ring is a shift register: slot j holds the sample j before the newest
-        lags = (self.n - 1 - np.arange(RING)) % RING
-        st[O_RING:O_RING + RING * N_CH] = self.ring[lags].ravel()
-        st[O_SVF_F:O_SVF_F + 3 * SVF_STATE] = self.svf_f.ravel()
-        st[O_SVF_C:O_SVF_C + 10 * SVF_STATE] = self.svf_c.ravel()
-        st[O_TH_F:O_TH_F + 5], st[O_P_F:O_P_F + 25] = self.th_f, self.P_f.ravel()
-        st[O_TH_C:O_TH_C + 4], st[O_P_C:O_P_C + 16] = self.th_c, self.P_c.ravel()
-        st[O_TH_V:O_TH_V + 5], st[O_P_V:O_P_V + 25] = self.th_v, self.P_v.ravel()
-        st[O_XH:O_XH + 2] = self.xh
-        st[O_ROWS:O_ROWS + 3] = self.rows
-        st[O_NOISE:O_NOISE + 4] = self.noise
-        st[O_NOISE_N] = self.noise_n
-        st[O_SLOW] = self.slow
-        st[O_REST] = self.rest
-        st[O_EXC_C] = self.exc_c
-        st[O_BC:O_BC + 3] = self.bc
-        st[O_RES_W:O_RES_W + N_STREAMS] = self.res_w
-        st[O_RES_E2:O_RES_E2 + N_STREAMS] = self.res_e2
-        st[O_RES_HIST:O_RES_HIST + N_STREAMS * N_LAGS] = self.res_hist.ravel()
-        st[O_RES_COV:O_RES_COV + N_STREAMS * N_LAGS] = self.res_cov.ravel()
-        for i, held in enumerate(self.held):
-            st[O_GATE + i * N_CH:O_GATE + (i + 1) * N_CH] = held
-        st[O_GATE_HAS] = len(self.held)
-        st[O_GATE_S:O_GATE_S + 4], st[O_GATE_N] = self.gate_s, self.gate_n
-        st[O_OUTLIERS:O_OUTLIERS + 4] = self.outliers
-        st[O_CLAMPED] = self.clamped
-        st[O_OBS_IN:O_OBS_IN + N_OBS * (SG_HALF + 1)] = self.obs_in.ravel()
-        st[O_SVF_O:O_SVF_O + N_OBS * OBS_STATE] = self.svf_o.ravel()
-        st[O_NE_A:O_NE_A + N_OBS_PARAMS * (N_OBS_PARAMS + 1) // 2] = self.ne_a[np.triu_indices(N_OBS_PARAMS)]  # packed by rows
-        st[O_NE_B:O_NE_B + N_OBS_PARAMS] = self.ne_b
-        st[O_NE_YY] = self.ne_yy
-        st[O_TH_O:O_TH_O + N_OBS_PARAMS] = self.th_o
-        st[O_ROWS_O] = self.rows_o
-        st[O_OBS_SGN:O_OBS_SGN + 3] = self.obs_sgn
-        st[O_OBS_IC] = self.obs_ic
-        st[O_OBS_KL] = self.obs_kl
-        st[O_OBS_SOL:O_OBS_SOL + 4] = self.obs_sol
-        st[O_SVF_K:O_SVF_K + 2 * SVF_STATE] = self.svf_k.ravel()
-        st[O_TH_K:O_TH_K + 3], st[O_P_K:O_P_K + 9] = self.th_k, self.P_k.ravel()
-        st[O_ROWS_K] = self.rows_k
-        st[O_SINCE_STEP] = self.since_step
-        st[O_OBS_STEP] = self.obs_step
-        return st
+        return pack_state(self)
 
     def estimates(self) -> tuple[np.ndarray, np.ndarray]:
         """(params, std_errors), each in PARAM_NAMES order (SI), by the shared read-out."""
-        from monitor.estimates import estimates
-        from monitor.identify import N_PARAMS
-
         p = np.empty(N_PARAMS)
         s = np.empty(N_PARAMS)
         estimates(self.state_row(), IdentModel.of(self._kernels), p, s)

@@ -78,9 +78,9 @@ def _command(u, jump, k, tau):
     # Catmull-Rom cubic through samples k-1..k+2 at k + tau (tau in [0, 1]), never through a
     # step of the command: jump[j] says ug jumps between samples j and j+1, so a neighbour
     # across a step is replaced by the straight line from this side, and the interval that
-    # holds the step follows each side's line up to its middle (before,
-    # the cubic smeared every step of paper-var over three intervals: x5 innovations of 2400
-    # sigma, and B + f_v refined 17 % off with an SE of 1-2 %)
+    # holds the step follows each side's line up to its middle (a cubic through a step smears it
+    # over three intervals: on paper-var, x5 innovations of 2400 sigma and B + f_v refined 17 %
+    # off with an SE of 1-2 %)
     n = u.shape[0]
     if jump[k] and k + 1 < n:
         # each side's straight line extended to where in the interval it steps (jump[k] - 1
@@ -327,7 +327,7 @@ def _not_smooth(cost, u: np.ndarray, jac: np.ndarray) -> list[str]:
     Where the error is smooth the two agree to within 1-13 % (the friction's columns are not
     checked: ROUGH_BY_NATURE). A fit that ends on a kink or a jump of the error (one record,
     paper-var at severity 0.79, 30 s: ratios 0 to 96) has a Jacobian that depends on the step:
-    its standard errors came out up to 40,000 times too small, and ``ok`` was True.
+    unchecked, its standard errors come out up to 40,000 times too small with ``ok`` True.
     """
     out = []
     for j, name in enumerate(FIT_NAMES):

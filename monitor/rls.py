@@ -6,7 +6,7 @@ Paper eqs (46)-(54) with a forgetting factor lam:
     theta <- theta + K (y - phi' theta)
     P <- (P - K phi' P) / lam
 
-Guards (issue 2): P is re-symmetrised after every update; forgetting is skipped while
+Guards: P is re-symmetrised after every update; forgetting is skipped while
 trace(P) exceeds ``p_max`` (so P stays bounded with no excitation: no windup); a
 non-finite row is refused, leaving the state untouched. The IV form replaces P phi by
 P z with an instrument z uncorrelated with the noise in phi (Young's recursive IV):
@@ -46,8 +46,8 @@ def _forget(P: np.ndarray, n: int, lam: float, p_max: float) -> None:
 
 
 # P is passed flat, P[i * n + j] (a slice of a rig's state row as it lies): reshaping the slice
-# to (n, n) on every row called numba's reshape helper, ~100 instructions a call, 5-6 calls a
-# sample on the hot path.
+# to (n, n) on every row would call numba's reshape helper, ~100 instructions a call, 5-6 calls
+# a sample on the hot path.
 @njit(cache=True, error_model="numpy")
 def rls_update(theta: np.ndarray, P: np.ndarray, phi: np.ndarray, y: float, lam: float, p_max: float,
                w: np.ndarray) -> float:

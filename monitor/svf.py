@@ -19,7 +19,7 @@ paper's identification input, noise-free, 10 s, a_force = 80 rad/s (batch replic
 regression): a first-order hold (piecewise-linear input) left m 0.121 % off, this 0.001 %;
 B + f_v 0.0035 -> 0.0012 %, f_c 0.044 -> 0.007 %. The linear hold misses the piston's ~19 Hz
 hydraulic resonance (5 samples a period) by about (w h)^2/12; sampled at 400 Hz both agree
-(0.0015 and 0.0011 %). Tustin, before either: m 0.142 %.
+(0.0015 and 0.0011 %). Tustin: m 0.142 %.
 
 Per signal the state is [x (3), u(k-1), u(k), u(k+1)] (``layout.SVF_STATE`` = 6); a step takes
 u(k+2) and outputs x(k+1).
@@ -50,10 +50,10 @@ def _matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     The filter matrices must not depend on the machine: numpy's ``@`` goes to OpenBLAS, which
     picks its kernel by CPU (SkylakeX on an AVX-512 machine, Haswell elsewhere) and rounds
-    differently; scipy's expm built on it gave matrices 1 ulp apart, which the early,
-    ill-conditioned estimates amplified to 1e-9 relative, and the golden recordings (which
-    pin the health bytes) failed on an AVX-512 machine. Pure Python floats are IEEE doubles
-    everywhere, and fsum's result does not depend on the order of its terms.
+    differently; scipy's expm built on it gives matrices 1 ulp apart, which the early,
+    ill-conditioned estimates amplify to 1e-9 relative: enough to change the health bytes the
+    golden recordings pin. Pure Python floats are IEEE doubles everywhere, and fsum's result
+    does not depend on the order of its terms.
     """
     n, m = a.shape[0], b.shape[1]
     out = np.empty((n, m))

@@ -1,12 +1,7 @@
-"""Batch equation-error model of the audit: signals, the equation blocks, their fits.
+"""Batch equation-error model of the audit: the equation blocks and their fits.
 
-The audit works on a whole record at once, so it may filter without phase lag. Every term
-of an equation is formed from the raw samples first (products, orifice factors, sign(v))
-and then passed through the same zero-phase Savitzky-Golay filter L; a derivative is the
-central difference of the filtered signal, so (L x)' = L[x'] holds at every frequency L
-passes (the SG derivative filter breaks that where L attenuates, which misfits fast
-inputs). The chamber equations use a 31-sample window (pressure-rate noise), the force
-equation 11 samples (friction acts near rest).
+Every term of an equation is formed from the raw samples first (products, orifice factors,
+sign(v)) and then passed through the same zero-phase filter L of ``monitor.audit.signals``.
 
 The nominal model is the paper's, as four blocks (SI):
 
@@ -44,11 +39,10 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from hydromon.contract import RigConfig
 
-from ..fourth_difference import CHI2_1_MEDIAN, D4_VARIANCE_GAIN
+from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, signals  # noqa: F401  (re-exported)
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
@@ -61,111 +55,7 @@ VAR_FLOOR = {"force": 25.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
 scale-free ratio of tiny model-approximation errors would otherwise look like evidence."""
 REST_V_RESOLUTION = 2e-3  # [m/s] rest rows need a velocity resolution (3 noise sigmas) finer than this
 STATIC_GRID = np.linspace(0.0, 600.0, 61)  # [N] static friction above Coulomb searched by ``static_search``
-SG_WINDOW = 31  # [samples] window of the chamber equations' filter L (odd)
-FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction acts near rest: keep it short)
-SG_LIGHT = 11  # [samples] window of the light smoothing of nonlinear terms' ingredients
-SG_ORDER = 3
-MARGIN = 25  # [samples] rows dropped at both ends (filter edges and x1 re-alignment)
-MIN_SAMPLES = 10 * MARGIN  # the shortest record the audit takes
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
-
-
-def _sg(x, deriv, h, window=SG_WINDOW):
-    """Savitzky-Golay smoothing; derivatives are central differences of the smoothed signal,
-    so that a derivative is the equation filter applied to the derivative, (L x)' = L[x'],
-    at every frequency L passes (the SG derivative filter is not: it differs from
-    j omega L(omega) where L attenuates, which misfits the equations on fast inputs)."""
-    y = savgol_filter(x, window, SG_ORDER, deriv=0, mode="interp", axis=0)
-    if deriv == 0:
-        return y
-    if deriv == 1:
-        return np.gradient(y, h, axis=0)
-    if deriv == 2:
-        d = np.zeros_like(y)
-        d[1:-1] = (y[2:] - 2.0 * y[1:-1] + y[:-2]) / (h * h)
-        d[0], d[-1] = d[1], d[-2]
-        return d
-    raise ValueError(f"derivative order must be 0, 1 or 2, got {deriv!r}")
-
-
-@dataclass(frozen=True)
-class Signals:
-    """One record's channels (SI), lightly smoothed ingredients and noise levels.
-
-    Attributes
-    ----------
-    h : float
-        Sample period [s].
-    ug, x1, x3, x4, x5 : arrays (N,)
-        Raw measured channels [V, m, Pa, Pa, m].
-    x1l, vl, x3l, x4l, x5l : arrays (N,)
-        Lightly smoothed position [m], velocity [m/s], pressures [Pa], spool [m]: the
-        ingredients of nonlinear terms (sign(v), the orifice factors), formed before the
-        equation filter.
-    v_noise : float
-        Noise rms of the equation-filtered velocity [m/s].
-    sigma : array (4,)
-        Sensor noise rms of x1 [m], x3 [Pa], x4 [Pa], x5 [m], from 4th differences.
-    gain, gain_f : array (3,)
-        White-noise gains (l2 norms) of the chamber (force) equation filter and its 1st and 2nd
-        derivative [1, 1/s, 1/s^2]: a channel of noise rms s gives s * gain[k] in its k-th derivative.
-    """
-
-    h: float
-    ug: np.ndarray
-    x1: np.ndarray
-    x3: np.ndarray
-    x4: np.ndarray
-    x5: np.ndarray
-    x1l: np.ndarray
-    vl: np.ndarray
-    x3l: np.ndarray
-    x4l: np.ndarray
-    x5l: np.ndarray
-    v_noise: float
-    sigma: np.ndarray
-    gain: np.ndarray
-    gain_f: np.ndarray
-
-    @property
-    def n(self) -> int:
-        return len(self.ug)
-
-    def smooth(self, x: np.ndarray, window: int = SG_WINDOW) -> np.ndarray:
-        """The equation filter L (zero-phase Savitzky-Golay)."""
-        return _sg(x, 0, self.h, window)
-
-    def deriv(self, x: np.ndarray, k: int = 1, window: int = SG_WINDOW) -> np.ndarray:
-        """k-th time derivative of L[x] [unit/s^k]."""
-        return _sg(x, k, self.h, window)
-
-
-def signals(samples: np.ndarray, h: float) -> Signals:
-    """Noise levels and lightly smoothed ingredients of the (N, 5) samples ``ug, x1, x3, x4, x5``
-    with period h [s]."""
-    s = np.asarray(samples, dtype=float)
-    if s.ndim != 2 or s.shape[1] != 5:
-        raise ValueError(f"samples must be (N, 5): ug, x1, x3, x4, x5; got shape {s.shape}")
-    if len(s) < 10 * MARGIN:
-        raise ValueError(f"need at least {MIN_SAMPLES} samples, got {len(s)}")
-    if not np.all(np.isfinite(s)):
-        raise ValueError(f"non-finite value in sample {int(np.argwhere(~np.isfinite(s))[0, 0])}")
-    if not (h > 0 and math.isfinite(h)):
-        raise ValueError(f"sample period must be > 0, got {h!r}")
-    ug, x1, x3, x4, x5 = (s[:, i].copy() for i in range(5))
-    # noise from the median of squared 4th differences (monitor.fourth_difference; the median
-    # ignores transients)
-    d4 = np.diff(s[:, 1:], 4, axis=0)
-    sigma = np.sqrt(np.median(d4 * d4, axis=0) / D4_VARIANCE_GAIN / CHI2_1_MEDIAN)
-    imp = np.zeros(4 * SG_WINDOW)
-    imp[2 * SG_WINDOW] = 1.0
-    gain = np.array([float(np.sqrt(np.sum(_sg(imp, k, h) ** 2))) for k in range(3)])
-    gain_f = np.array([float(np.sqrt(np.sum(_sg(imp, k, h, FORCE_WINDOW) ** 2))) for k in range(3)])
-    light = _sg(s[:, 1:], 0, h, SG_LIGHT)
-    return Signals(h=h, ug=ug, x1=x1, x3=x3, x4=x4, x5=x5,
-                   x1l=light[:, 0], vl=_sg(x1, 1, h, SG_LIGHT), x3l=light[:, 1], x4l=light[:, 2],
-                   x5l=light[:, 3], v_noise=float(sigma[0] * gain_f[1]), sigma=sigma, gain=gain,
-                   gain_f=gain_f)
 
 
 def orifice_factors(xv: np.ndarray, p1: np.ndarray, p2: np.ndarray, ps) -> tuple[np.ndarray, np.ndarray]:
@@ -370,8 +260,8 @@ class Fit:
         raw = float(np.mean(r * r))
         if name == "rest":
             # one row a dead-zone margin (2 noise sigmas) beyond it is noise, not evidence: on a
-            # clean 20 s record 20 held-out rest rows held one noise excursion of 15 N, and a
-            # candidate that widened the dead zone scored 0.27-1.0 against a threshold of 0.15
+            # clean 20 s record, 20 held-out rest rows with one noise excursion of 15 N score a
+            # candidate that widens the dead zone 0.27-1.0 against a threshold of 0.15
             floor = max(VAR_FLOOR[name], self.blocks[name].margin ** 2 / len(r))
         else:
             floor = max(0.01 * raw, VAR_FLOOR[name])
