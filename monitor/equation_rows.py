@@ -193,12 +193,12 @@ def static_gain_rows(st, yk, phi, lam, pmax, w):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def observer_rows(st, model: IdentModel, phi, yo, phi_o, lam, w):
+def observer_rows(st, hyper, m_f, m_c, m_o, g_f, g_c, phi, yo, phi_o, lam, w):
     """The force balance with observed pressures (``monitor.force_observer``) on the rows the
     plain force balance takes: phi holds that row's five scaled regressors, yo (N_OBS,
-    OBS_ORDER) the observer filters' outputs, phi_o (N_OBS_PARAMS,) and w are scratch. Every
+    OBS_ORDER) the observer filters' outputs, phi_o (N_OBS_PARAMS,) and w are scratch; hyper ..
+    g_c the fields of ``IdentModel`` (one by one: see ``monitor.identify.identify_step``). Every
     OBS_REFRESH rows its solution is refreshed into the state (``monitor.estimates.observer_refresh``)."""
-    hyper = model.hyper
     if st[O_SLOW] < hyper[H_GUARD] or st[O_OBS_STEP] < hyper[H_OBS_STEP]:
         return
     for i in range(4):
@@ -209,4 +209,4 @@ def observer_rows(st, model: IdentModel, phi, yo, phi_o, lam, w):
     if math.isfinite(e):
         residual_stats(st, 4, e, lam)
     if st[O_ROWS_O] % OBS_REFRESH == 0.0:
-        observer_refresh(st, model)
+        observer_refresh(st, IdentModel(hyper, m_f, m_c, m_o, g_f, g_c))

@@ -3,9 +3,11 @@
 grading (monitor.grading) into event arrays. Driven by ``monitor.pipeline.Fleet``.
 
 The kernels take their arrays grouped into the records below (module-level NamedTuples: numba
-types them field by field and ``cache=True`` finds the classes again), except
-``pipeline_step``, the entry a caller reaches once per batch, down to one sample a batch: it
-takes the records' fields one by one (see there why) and groups them itself.
+types them field by field and ``cache=True`` finds the classes again), except at the two ends
+of a call, for speed: ``pipeline_step`` and ``run_part``, the entries Python calls once per
+batch (down to one sample a batch) or per thread's part of it, take the records' fields one by
+one and group them themselves, and the per-sample loop hands
+``monitor.identify.identify_step`` the fields of ``IdentModel`` and ``Scratch`` (each says why).
 """
 
 from __future__ import annotations
@@ -152,28 +154,55 @@ def _evaluate(fleet, model, grading, events, r, i, slot, out):
     events.implausible[slot] = bad
 
 
+@njit(cache=True, error_model="numpy")
+def _run(order, lo, hi, fleet, model, grading, eval_every, arrivals, events, slot):
+    """Samples order[lo:hi] of the batch ``arrivals``, in that order, through identification;
+    each rig's evaluations (every eval_every of its samples) into ``events`` from ``slot`` on.
+    Returns the next free slot."""
+    out = Readout(np.empty((1, N_P)), np.empty((1, N_P)), np.zeros(1, dtype=np.bool_))
+    # the arrays the loop reads on every sample, as locals: read from the records inside the
+    # loop, each costs a reference count a sample (identify_step says how much)
+    work, y_f, y_c, y_o, y_k = new_scratch()
+    hyper, m_f, m_c, m_o, g_f, g_c = model
+    rig, samples = arrivals
+    states, consts, counts, phase = fleet.states, fleet.consts, fleet.counts, fleet.phase
+    for q in range(lo, hi):
+        i = order[q]
+        r = rig[i]
+        identify_step(states[r], consts[r], hyper, m_f, m_c, m_o, g_f, g_c, samples[i, 0], samples[i, 1], samples[i, 2],
+                      samples[i, 3], samples[i, 4], work, y_f, y_c, y_o, y_k)
+        counts[r] += 1
+        if (counts[r] + phase[r]) % eval_every == 0:
+            _evaluate(fleet, model, grading, events, r, i, slot, out)
+            slot += 1
+    return slot
+
+
+# The two entries Python calls take the records' fields one by one: numba's dispatcher types a
+# plain array argument in C and a NamedTuple in Python, field by field. At one sample a call
+# (Fleet.update of a single rig) the five records as arguments take 8.7 us a call, their fields
+# 4.2 us (measured); a worker thread's dispatch holds the GIL the other threads need.
+
 # nogil: Fleet's worker threads call it directly. Threads, not numba's prange: every view a
 # kernel takes of a shared array counts references on that array's one meminfo, and two cores
 # bumping one counter ~40 times a sample serialise a prange version (1.15x on 2 cores); each
 # Python thread's call unboxes the arrays with its own meminfo.
 @njit(cache=True, nogil=True, error_model="numpy")
-def run_part(order, lo, hi, fleet, model, grading, eval_every, arrivals, events, slot):
-    """Samples order[lo:hi] of the batch ``arrivals``, in that order, through identification;
-    each rig's evaluations (every eval_every of its samples) into ``events`` from ``slot`` on.
-    Returns the next free slot."""
-    scratch = new_scratch()
-    out = Readout(np.empty((1, N_P)), np.empty((1, N_P)), np.zeros(1, dtype=np.bool_))
-    samples = arrivals.samples
-    for q in range(lo, hi):
-        i = order[q]
-        r = arrivals.rig[i]
-        identify_step(fleet.states[r], fleet.consts[r], model, samples[i, 0], samples[i, 1], samples[i, 2],
-                      samples[i, 3], samples[i, 4], scratch)
-        fleet.counts[r] += 1
-        if (fleet.counts[r] + fleet.phase[r]) % eval_every == 0:
-            _evaluate(fleet, model, grading, events, r, i, slot, out)
-            slot += 1
-    return slot
+def run_part(order, lo, hi, slot,
+             states, consts, counts, phase, bands,  # FleetRows
+             hyper, m_f, m_c, m_o, g_f, g_c,  # IdentModel
+             index, sign, edges, margins, z, min_rows,  # Grading
+             eval_every, rig, samples,  # the schedule and the Arrivals
+             ev_rig, ev_sample, ev_counts, ev_level, ev_confidence, ev_params, ev_std_errors, ev_grades,
+             ev_converged, ev_clamped, ev_implausible):  # EventArrays
+    """Samples order[lo:hi] of the batch (rig, samples), in that order, through identification and
+    the rigs' evaluations; events from ``slot`` on. Returns the next free slot. The arguments
+    after ``slot`` are ``pipeline_step``'s."""
+    return _run(order, lo, hi, FleetRows(states, consts, counts, phase, bands),
+                IdentModel(hyper, m_f, m_c, m_o, g_f, g_c), Grading(index, sign, edges, margins, z, min_rows),
+                eval_every, Arrivals(rig, samples),
+                EventArrays(ev_rig, ev_sample, ev_counts, ev_level, ev_confidence, ev_params, ev_std_errors,
+                            ev_grades, ev_converged, ev_clamped, ev_implausible), slot)
 
 
 @njit(cache=True, error_model="numpy")
@@ -186,17 +215,12 @@ def pipeline_step(states, consts, counts, phase, bands,  # FleetRows
     """Identify a batch of samples in arrival order; evaluate and grade rigs at their evaluation
     points (every eval_every samples of a rig, counted on that rig's samples, so results never
     depend on how arrivals were batched). Returns the number of events written into the event
-    arrays (sized by the caller to len(samples) // eval_every + number of rigs).
-
-    The records' fields come one by one: numba's dispatcher types a plain array argument in C
-    and a NamedTuple in Python, field by field. At one sample a call (``Fleet.update`` of a
-    single rig), the five records as arguments take 8.7 us a call, their fields 4.2 us (measured).
-    """
-    return run_part(np.arange(rig.shape[0]), 0, rig.shape[0], FleetRows(states, consts, counts, phase, bands),
-                    IdentModel(hyper, m_f, m_c, m_o, g_f, g_c), Grading(index, sign, edges, margins, z, min_rows),
-                    eval_every, Arrivals(rig, samples),
-                    EventArrays(ev_rig, ev_sample, ev_counts, ev_level, ev_confidence, ev_params, ev_std_errors,
-                                ev_grades, ev_converged, ev_clamped, ev_implausible), 0)
+    arrays (sized by the caller to len(samples) // eval_every + number of rigs)."""
+    return _run(np.arange(rig.shape[0]), 0, rig.shape[0], FleetRows(states, consts, counts, phase, bands),
+                IdentModel(hyper, m_f, m_c, m_o, g_f, g_c), Grading(index, sign, edges, margins, z, min_rows),
+                eval_every, Arrivals(rig, samples),
+                EventArrays(ev_rig, ev_sample, ev_counts, ev_level, ev_confidence, ev_params, ev_std_errors,
+                            ev_grades, ev_converged, ev_clamped, ev_implausible), 0)
 
 
 @njit(cache=True, error_model="numpy")

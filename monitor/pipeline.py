@@ -22,7 +22,7 @@ from hydromon.contract import SENSORS
 from hydromon.contract import RigConfig
 
 from .fleet_kernel import (
-    N_P, Arrivals, EventArrays, FleetRows, Grading, assess_rig, partition_rigs, pipeline_step, run_part,
+    N_P, EventArrays, FleetRows, Grading, assess_rig, partition_rigs, pipeline_step, run_part,
 )
 from .grading import Ranges, grade_kernel
 from .ident_model import IdentModel
@@ -189,7 +189,7 @@ class Fleet:
         self._rows = FleetRows(self.states, self.consts, self.counts, self.phase, self.bands)
         self._model = IdentModel.of(self._k)
         self._grading = Grading(ra.index, ra.sign, ra.edges, ra.margins, self.grade_z, float(self.options.min_rows))
-        # pipeline_step's leading arguments: the records' fields, in its order
+        # pipeline_step's and run_part's: the records' fields, in their order
         self._fields = (*self._rows, *self._model, *self._grading, self.eval_every)
 
     @property
@@ -289,10 +289,10 @@ class Fleet:
         if self._pool is None:
             self._pool = ThreadPoolExecutor(t - 1, thread_name_prefix="fleet")
         order, start = partition_rigs(rig, t, len(self.ids))
-        args = (self._rows, self._model, self._grading, self.eval_every, Arrivals(rig, samples), self._ev)
+        args = (*self._fields, rig, samples, *self._ev)
 
         def part(k):
-            return run_part(order, start[k], start[k + 1], *args, k * cap) - k * cap
+            return run_part(order, start[k], start[k + 1], k * cap, *args) - k * cap
 
         futures = [self._pool.submit(part, k) for k in range(1, t)]
         n_ev = [part(0)] + [f.result() for f in futures]
