@@ -12,5 +12,5 @@ mean of 1.
 D4_VARIANCE_GAIN = 70.0
 """Variance of a 4th difference of white noise over the noise's variance [-]."""
 
-CHI2_1_MEDIAN = 0.45493642311957283
+CHI2_1_MEDIAN = 0.4549364231195728
 """Median of chi2(1) [-]: (Phi^-1(3/4))^2, the squared upper quartile of N(0, 1)."""
