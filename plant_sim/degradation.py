@@ -13,9 +13,11 @@ band and take Table 3's fault values 3e-10 inside it.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from hydromon.contract import GRADES
+from hydromon.contract import GRADES, RigConfig
 
 from .params import PlantParams
 
@@ -69,6 +71,54 @@ def degrade(severity: float, base: PlantParams | None = None, **overrides: float
     )
     values.update(overrides)
     return base.model_copy(update=values)
+
+
+# the reference rig's healthy values the knots are relative to (Table 1: K_sv omega^2 = 2.5,
+# f_c = 5 N, B + f_v = 6025 N s/m, C_d W / sqrt(rho) = 6.07e-4, C_ip = 3e-11, C_ep = 0)
+_REFERENCE = PlantParams()
+
+
+def leak_scale(cdw_sqrt_rho: float, k_sv: float, p_s: float) -> float:
+    """How much larger a leakage coefficient must be on this rig than on the reference rig to
+    do the same harm [-]: the leakage flow at supply pressure against the valve's flow.
+
+    A leakage C [m^3/(s Pa)] passes ~C p_s; the valve passes ~(C_d W / sqrt(rho)) K_sv u
+    sqrt(p_s) for a drive u; the piston stops moving when the first is a fixed share of the
+    second, so equal harm means C proportional to (C_d W / sqrt(rho)) K_sv / sqrt(p_s).
+    ``cdw_sqrt_rho`` [m^2.5/kg^0.5], ``k_sv`` [m/V], ``p_s`` [Pa] of the rig; 1 for the reference.
+    """
+    ref = _REFERENCE.CdW_sqrt_rho * _REFERENCE.K_sv / math.sqrt(RigConfig().p_s)
+    return cdw_sqrt_rho * k_sv / math.sqrt(p_s) / ref
+
+
+def degrade_relative(severity: float, base: PlantParams, config: RigConfig | None = None) -> PlantParams:
+    """``base`` (a rig's own healthy plant) degraded to ``severity`` in [0, 1] as the reference
+    rig degrades from its own: each degrading parameter times its knot's ratio to the
+    reference's healthy value (K_sv, f_c, C_d W / sqrt(rho); B + f_v through f_v), the leakages
+    at the reference's fault values scaled by :func:`leak_scale` in the fault band.
+
+    On the reference plant (Table 1) it gives :func:`degrade`'s plant, up to rounding.
+    ``config`` gives the supply pressure for the leakage scale (default: the reference rig's).
+    """
+    _check(severity)
+    config = config or RigConfig()
+    ref = _REFERENCE
+    ratio = lambda knots, value: float(np.interp(severity, KNOTS_S, knots)) / value  # noqa: E731
+    b_fv = (base.B + base.f_v) * ratio(B_FV, ref.B + ref.f_v)
+    cdw = base.CdW_sqrt_rho * ratio(CDW_SQRT_RHO, ref.CdW_sqrt_rho)
+    if severity >= 0.8:
+        scale = leak_scale(base.CdW_sqrt_rho, base.K_sv, config.p_s)
+        c_ip, c_ep = LEAK_FAULT[0] * scale, LEAK_FAULT[1] * scale
+    else:
+        c_ip, c_ep = base.C_ip, base.C_ep
+    return base.model_copy(update=dict(
+        K_sv=base.K_sv * ratio(K_SV_OMEGA2 / ref.omega_sv**2, ref.K_sv),
+        f_c=base.f_c * ratio(F_C, ref.f_c),
+        f_v=b_fv - base.B,
+        W=cdw * base.rho**0.5 / base.C_d,
+        C_ip=c_ip,
+        C_ep=c_ep,
+    ))
 
 
 def table4_group(group: int) -> PlantParams:

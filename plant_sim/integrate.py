@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from .model import derivatives
-from .params import P_XMAX
+from .params import P_KF, P_KFF, P_KI, P_KP, P_XMAX
 
 DEFAULT_SUBSTEPS = 10
 
@@ -90,6 +90,63 @@ def advance(x: np.ndarray, p: np.ndarray, ug_sub: np.ndarray, x1_fb: float, h: f
 
 
 @njit(cache=True)
+def sample_step(x: np.ndarray, p: np.ndarray, ug_sub: np.ndarray, y: float, fb: float, ctrl: np.ndarray, h: float,
+                work: np.ndarray, held: np.ndarray) -> float:
+    """Advance ``x`` by one sample period under the rig's controller; return its valve drive [V].
+
+    The proportional loop of the rig constants (``P_KI`` and ``P_KFF`` zero) acts continuously
+    on the command ``ug_sub`` and the fed-back position ``fb`` (NaN: the live x1); its drive is
+    reported at the sample instant, ``K_p (ug - K_f y)``. A digital PI loop with feed-forward
+    (``plant_sim.params.Controller``) computes ``u_k`` once from the command at the sample
+    instant and the position ``y`` [m] it measures there, and holds it over the period: it is
+    passed to :func:`advance` as the command ``u_k / K_p + K_f y`` with ``y`` fed back, which
+    gives the spool ``K_p (ug - K_f y) = u_k``. ``ctrl`` (2,) is the loop's state, updated in
+    place: the integral [V] and the previous command [V] (NaN before the first sample).
+    ``held`` (2 n + 1,) is scratch space.
+    """
+    kp, kf, ki, kff = p[P_KP], p[P_KF], p[P_KI], p[P_KFF]
+    ug = ug_sub[0]
+    if ki == 0.0 and kff == 0.0:
+        advance(x, p, ug_sub, fb, h, work)
+        return kp * (ug - kf * y)
+    e = ug - kf * y
+    ctrl[0] += ki * h * e
+    prev = ug if math.isnan(ctrl[1]) else ctrl[1]
+    ctrl[1] = ug
+    u = kp * (e + ctrl[0]) + kff * (ug - prev) / h
+    held[:] = u / kp + kf * y
+    advance(x, p, held, y, h, work)
+    return u
+
+
+@njit(cache=True)
+def run_fleet_drive(x0: np.ndarray, p: np.ndarray, ug_sub: np.ndarray, h: float, loop_delay: np.ndarray,
+                    drive: np.ndarray) -> np.ndarray:
+    """:func:`run_fleet`, also writing each rig's valve drive [V] of every sample period into
+    ``drive`` (n_rigs, n_samples) (:func:`sample_step`)."""
+    n_rigs, n_samples = ug_sub.shape[0], ug_sub.shape[1]
+    out = np.empty((n_rigs, n_samples + 1, 6))
+    work = np.empty((5, 6))
+    held = np.empty(ug_sub.shape[2])
+    ctrl = np.empty(2)
+    x = np.empty(6)
+    for r in range(n_rigs):
+        x[:] = x0[r]
+        out[r, 0] = x
+        ctrl[0], ctrl[1] = 0.0, np.nan
+        d = loop_delay[r]
+        for k in range(n_samples):
+            fb = np.nan
+            y = x[0]
+            if d > 0:
+                fb = out[r, max(k - d, 0), 0]
+                y = fb
+            drive[r, k] = sample_step(x, p[r], ug_sub[r, k], y, fb, ctrl, h, work, held)
+            out[r, k + 1] = x
+    return out
+
+
+@njit(cache=True)
 def run_fleet(x0: np.ndarray, p: np.ndarray, ug_sub: np.ndarray, h: float, loop_delay: np.ndarray) -> np.ndarray:
     """Simulate ``n_rigs`` rigs for ``n_samples`` sample periods.
 
@@ -111,18 +168,4 @@ def run_fleet(x0: np.ndarray, p: np.ndarray, ug_sub: np.ndarray, h: float, loop_
     array (n_rigs, n_samples + 1, 6)
         States at the sample instants, the initial state first.
     """
-    n_rigs, n_samples = ug_sub.shape[0], ug_sub.shape[1]
-    out = np.empty((n_rigs, n_samples + 1, 6))
-    work = np.empty((5, 6))
-    x = np.empty(6)
-    for r in range(n_rigs):
-        x[:] = x0[r]
-        out[r, 0] = x
-        d = loop_delay[r]
-        for k in range(n_samples):
-            fb = np.nan
-            if d > 0:
-                fb = out[r, max(k - d, 0), 0]
-            advance(x, p[r], ug_sub[r, k], fb, h, work)
-            out[r, k + 1] = x
-    return out
+    return run_fleet_drive(x0, p, ug_sub, h, loop_delay, np.empty((ug_sub.shape[0], ug_sub.shape[1])))

@@ -4,7 +4,7 @@
 sizes gives, bit for bit, the samples of one :func:`plant_sim.simulate.simulate_fleet`
 call with the same rigs and seeds (``tests/plant_sim/test_live.py`` pins it):
 
-- the integrator is :func:`plant_sim.integrate.advance`, called per sample by
+- the integrator is :func:`plant_sim.integrate.sample_step`, called per sample by
   :func:`step_fleet` exactly as :func:`plant_sim.integrate.run_fleet` calls it; the
   fed-back and the measured position come from a ring buffer of past x1 instead of the
   whole state history, so the sensor delay (in the loop or in the recording only) acts
@@ -24,18 +24,18 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .integrate import DEFAULT_SUBSTEPS, advance
+from .integrate import DEFAULT_SUBSTEPS, sample_step
 from .model import null_state
 from .noise import NoiseModel, add_noise
 from hydromon.contract import RigConfig
-from .params import Effects, PlantParams, plant_vector
+from .params import Controller, Effects, PlantParams, plant_vector
 from .profiles import Profile
 
 __all__ = ["PlantFleet", "Block", "step_fleet", "command_block"]
 
 
 @njit(cache=True, nogil=True)
-def step_fleet(x, p, ug_sub, h, k0, loop_delay, meas_delay, hist, x1_0, clean, states):
+def step_fleet(x, p, ug_sub, h, k0, loop_delay, meas_delay, hist, x1_0, clean, states, ctrl, drive):
     """Emit samples k0 .. k0+k-1 of every rig and advance past them (``x``, ``hist`` in place).
 
     Parameters
@@ -60,10 +60,15 @@ def step_fleet(x, p, ug_sub, h, k0, loop_delay, meas_delay, hist, x1_0, clean, s
         Out: noise-free measured x1 [m], x3 [Pa], x4 [Pa], x5 [m] of each sample.
     states : array (n_rigs, k, 6)
         Out: true state at each sample.
+    ctrl : array (n_rigs, 2)
+        Each rig's controller state (``plant_sim.integrate.sample_step``), updated in place.
+    drive : array (n_rigs, k)
+        Out: the controller's valve drive [V] at each sample.
     """
     n, k = ug_sub.shape[0], ug_sub.shape[1]
     L = hist.shape[1]
     work = np.empty((5, 6))
+    held = np.empty(ug_sub.shape[2])
     xr = np.empty(6)
     for r in range(n):
         xr[:] = x[r]
@@ -78,10 +83,12 @@ def step_fleet(x, p, ug_sub, h, k0, loop_delay, meas_delay, hist, x1_0, clean, s
             clean[r, j, 2] = xr[3]
             clean[r, j, 3] = xr[4]
             fb = np.nan  # live feedback, as run_fleet with delay 0
+            y = xr[0]
             if dl > 0:
                 src = s - dl
                 fb = hist[r, src % L] if src >= 0 else x1_0[r]
-            advance(xr, p[r], ug_sub[r, j], fb, h, work)
+                y = fb
+            drive[r, j] = sample_step(xr, p[r], ug_sub[r, j], y, fb, ctrl[r], h, work, held)
         x[r] = xr
 
 
@@ -110,12 +117,15 @@ class Block:
         Bus channels ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m] as measured (noise, delay).
     states : array (n_rigs, k, 6)
         True states [m, m/s, Pa, Pa, m, m/s].
+    u : array (n_rigs, k)
+        The controllers' valve drive [V] at each sample.
     """
 
     seq: np.ndarray
     t: np.ndarray
     samples: np.ndarray
     states: np.ndarray
+    u: np.ndarray
 
 
 def _per_rig(value, n: int, name: str) -> list:
@@ -145,10 +155,12 @@ class PlantFleet:
         Noise seed of each rig (default 0, 1, ..., as ``simulate_fleet``).
     substeps : int
         RK4 substeps per sample period.
+    controllers : Controller or list of Controller, optional
+        Each rig's position controller (default: the rig constants' proportional loop).
     """
 
     def __init__(self, config, params_list, profiles, effects_list=None, noise=None,
-                 seeds=None, substeps: int = DEFAULT_SUBSTEPS):
+                 seeds=None, substeps: int = DEFAULT_SUBSTEPS, controllers=None):
         n = len(params_list)
         if n < 1:
             raise ValueError("a fleet needs at least one rig")
@@ -165,9 +177,14 @@ class PlantFleet:
         self.seeds: list[int] = list(seeds) if seeds is not None else list(range(n))
         if len(self.seeds) != n:
             raise ValueError(f"seeds: {len(self.seeds)} given for {n} rigs")
+        self.controllers: list[Controller] = _per_rig(controllers if controllers is not None else Controller(), n,
+                                                      "controllers")
         self.substeps = int(substeps)
         self.h = self.configs[0].h
-        self.vec = np.stack([plant_vector(c, p, e) for c, p, e in zip(self.configs, self.params, self.effects)])
+        self.vec = np.stack([plant_vector(c, p, e, k) for c, p, e, k in
+                             zip(self.configs, self.params, self.effects, self.controllers)])
+        self.ctrl = np.zeros((n, 2))
+        self.ctrl[:, 1] = np.nan  # no command seen yet
         self.x = np.stack([null_state(v) for v in self.vec])
         self.x1_0 = self.x[:, 0].copy()
         self._set_delays()
@@ -232,8 +249,9 @@ class PlantFleet:
             samples[rigs, :, 0] = profile(t)
         clean = np.empty((n, k, 4))
         states = np.empty((n, k, 6))
+        drive = np.empty((n, k))
         step_fleet(self.x, self.vec, ug_sub, h, k0, self.loop_delay, self.meas_delay, self.hist,
-                   self.x1_0, clean, states)
+                   self.x1_0, clean, states, self.ctrl, drive)
         # rigs without noise at once: add_noise would return their clean rows and draw nothing
         # (one call per rig per block was about half of this method's time at 800 rigs)
         zero, noisy = self._noise_rows()
@@ -242,7 +260,7 @@ class PlantFleet:
         for r in noisy:
             samples[r, :, 1:] = add_noise(clean[r], self.noise[r], self.rngs[r])
         self.k = k0 + k
-        return Block(seq=seq, t=t, samples=samples, states=states)
+        return Block(seq=seq, t=t, samples=samples, states=states, u=drive)
 
     def set_rig(self, i: int, *, config: RigConfig | None = None, params: PlantParams | None = None,
                 effects: Effects | None = None, profile: Profile | None = None) -> None:
@@ -277,4 +295,4 @@ class PlantFleet:
                 for s in range(max(0, self.k - new_len), self.k):
                     hist[:, s % new_len] = self.hist[:, max(s, oldest) % old_len]
                 self.hist = hist
-        self.vec[i] = plant_vector(self.configs[i], self.params[i], self.effects[i])
+        self.vec[i] = plant_vector(self.configs[i], self.params[i], self.effects[i], self.controllers[i])

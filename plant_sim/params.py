@@ -22,6 +22,7 @@ __all__ = [
     "RigConfig",  # re-exported: the rig constants are the contract's
     "PlantParams",
     "Effects",
+    "Controller",
     "plant_vector",
     "N_PARAMS",
     "EFFECT_NAMES",
@@ -149,6 +150,37 @@ class Effects(_Model):
         return self
 
 
+class Controller(_Model):
+    """The rig's position controller, when it is not the proportional loop of the rig constants.
+
+    ``RigConfig`` describes the loop a monitor assumes when a rig publishes no valve drive
+    signal: ``u = K_p (ug - K_f x1)``, continuous. Real position loops are digital PI loops with
+    feed-forward; with ``K_i`` or ``K_ff`` set the simulated rig runs one at its sample rate,
+    its output held over each sample period (zero-order hold):
+
+        e_k = ug_k - K_f y_k,   I_k = I_(k-1) + K_i h e_k,
+        u_k = K_p (e_k + I_k) + K_ff (ug_k - ug_(k-1)) / h
+
+    with y_k the fed-back position [m] and h the sample period [s]. Such a rig publishes its
+    valve drive ``u`` [V] so that the monitor needs no model of its controller.
+
+    Attributes
+    ----------
+    K_i : float
+        Integral gain [1/s] (0: none).
+    K_ff : float
+        Feed-forward gain on the command's rate [s] (0: none).
+    """
+
+    K_i: float = Field(0.0, ge=0)
+    K_ff: float = Field(0.0, ge=0)
+
+    @property
+    def digital(self) -> bool:
+        """True when the loop is not the rig constants' continuous proportional one."""
+        return self.K_i > 0.0 or self.K_ff > 0.0
+
+
 EFFECT_NAMES = (
     "stribeck_friction",
     "valve_saturation",
@@ -165,13 +197,14 @@ P_ATM = 101325.0  # [Pa]
 (
     P_A1, P_A2, P_V10, P_V20, P_PS, P_FL, P_KP, P_KF,
     P_M, P_B, P_KT, P_BETA, P_CDW_RHO, P_CIP, P_CEP, P_KSV, P_WSV, P_ZSV, P_FC, P_FV,
-    P_FS, P_VS, P_XMAX, P_DB, P_SAG, P_AIR, P_FOFF,
-) = range(27)
-N_PARAMS = 27
+    P_FS, P_VS, P_XMAX, P_DB, P_SAG, P_AIR, P_FOFF, P_KI, P_KFF,
+) = range(29)
+N_PARAMS = 29
 
 
-def plant_vector(config: RigConfig, params: PlantParams, effects: Effects | None = None) -> np.ndarray:
-    """Flatten rig constants, plant parameters and effects into the core's vector.
+def plant_vector(config: RigConfig, params: PlantParams, effects: Effects | None = None,
+                 controller: Controller | None = None) -> np.ndarray:
+    """Flatten rig constants, plant parameters, effects and controller into the core's vector.
 
     Returns
     -------
@@ -189,4 +222,6 @@ def plant_vector(config: RigConfig, params: PlantParams, effects: Effects | None
     v[P_FC], v[P_FV] = params.f_c, params.f_v
     v[P_FS], v[P_VS], v[P_XMAX], v[P_DB] = e.stribeck_F_s, e.stribeck_v_s, e.x_max, e.dead_band
     v[P_SAG], v[P_AIR], v[P_FOFF] = e.supply_sag, e.air_fraction, e.load_offset
+    c = controller or Controller()
+    v[P_KI], v[P_KFF] = c.K_i, c.K_ff
     return v

@@ -6,11 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .integrate import DEFAULT_SUBSTEPS, run_fleet
+from .integrate import DEFAULT_SUBSTEPS, run_fleet_drive
 from .model import null_state
 from .noise import NoiseModel, add_noise
 from hydromon.contract import RigConfig
-from .params import Effects, PlantParams, plant_vector
+from .params import Controller, Effects, PlantParams, plant_vector
 from .profiles import Profile
 
 __all__ = ["Run", "simulate", "simulate_fleet", "command_grid"]
@@ -30,6 +30,8 @@ class Run:
         True states [m, m/s, Pa, Pa, m, m/s].
     measured : array (N, 4)
         What the sensors report: x1 [m], x3 [Pa], x4 [Pa], x5 [m] (noise, delay applied).
+    u : array (N,)
+        The controller's valve drive [V] at each sample (``plant_sim.integrate.sample_step``).
     """
 
     t: np.ndarray
@@ -41,6 +43,8 @@ class Run:
     effects: Effects
     noise: NoiseModel
     seed: int
+    u: np.ndarray | None = None
+    controller: Controller = Controller()
 
     @property
     def samples(self) -> np.ndarray:
@@ -72,6 +76,7 @@ def simulate_fleet(
     noise: NoiseModel | None = None,
     seeds: list[int] | None = None,
     substeps: int = DEFAULT_SUBSTEPS,
+    controllers: list[Controller] | None = None,
 ) -> list[Run]:
     """Simulate several rigs of one config for ``duration`` [s]; one compiled loop for all."""
     n = len(params)
@@ -86,18 +91,22 @@ def simulate_fleet(
     n_samples = int(round(duration / h))
     if n_samples < 2:
         raise ValueError(f"duration {duration} s gives fewer than 2 samples at {config.sample_rate} Hz")
-    vec = np.stack([plant_vector(config, p, e) for p, e in zip(params, effects)])
+    controllers = controllers or [Controller()] * n
+    vec = np.stack([plant_vector(config, p, e, c) for p, e, c in zip(params, effects, controllers)])
     x0 = np.stack([null_state(v) for v in vec])
-    grid = np.stack([command_grid(pr, n_samples, h, substeps) for pr in profiles])
+    # one interval more than the samples need, for the controller's drive at the last sample
+    grid = np.stack([command_grid(pr, n_samples + 1, h, substeps) for pr in profiles])
     delay = np.array([e.sensor_delay if e.sensor_delay_in_loop else 0 for e in effects], dtype=np.int64)
-    states = run_fleet(x0, vec, grid, h, delay)
+    drive = np.empty((n, n_samples))
+    states = run_fleet_drive(x0, vec, grid, h, delay, drive)[:, :n_samples]
     t = np.arange(n_samples) * h
     runs = []
     for i in range(n):
         ug = profiles[i](t)
         st = states[i]
         runs.append(Run(t=t, ug=ug, states=st, measured=_measure(st, effects[i], noise, seeds[i]),
-                        config=config, params=params[i], effects=effects[i], noise=noise, seed=seeds[i]))
+                        config=config, params=params[i], effects=effects[i], noise=noise, seed=seeds[i],
+                        u=drive[i], controller=controllers[i]))
     return runs
 
 
@@ -110,7 +119,8 @@ def simulate(
     noise: NoiseModel | None = None,
     seed: int = 0,
     substeps: int = DEFAULT_SUBSTEPS,
+    controller: Controller | None = None,
 ) -> Run:
     """Simulate one rig from the null state (``model.null_state``) for ``duration`` [s]."""
     return simulate_fleet(config or RigConfig(), [params or PlantParams()], [profile], duration,
-                          [effects or Effects()], noise, [seed], substeps)[0]
+                          [effects or Effects()], noise, [seed], substeps, [controller or Controller()])[0]

@@ -87,11 +87,14 @@ class SimNode:
     congestion : zenoh.CongestionControl
         For the sample publishers; BLOCK (default) never drops: a slow network slows the
         simulation (the lateness shows in the stats) instead of losing samples.
+    publish_u : sequence of bool, optional
+        Per rig: publish its valve drive ``u`` [V] in every sample (default: none does).
     """
 
     def __init__(self, session: zenoh.Session, ids: Sequence[str], fleet: PlantFleet, *,
                  namespace: str = DEFAULT_NAMESPACE, rate: float = 1.0, block: int = DEFAULT_BLOCK,
-                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK):
+                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
+                 publish_u: Sequence[bool] | None = None):
         if len(ids) != fleet.n_rigs:
             raise ValueError(f"{len(ids)} ids for {fleet.n_rigs} rigs")
         if len(set(ids)) != len(ids):
@@ -105,6 +108,9 @@ class SimNode:
         self._sample_keys = [sample_key(i, namespace) for i in self.ids]  # validates the ids
         self._config_keys = [config_key(i, namespace) for i in self.ids]
         self._congestion = congestion
+        self._with_u = frozenset(i for i, on in enumerate(publish_u or ()) if on)
+        if publish_u is not None and len(publish_u) != fleet.n_rigs:
+            raise ValueError(f"publish_u: {len(publish_u)} given for {fleet.n_rigs} rigs")
         self._changes: queue.SimpleQueue = queue.SimpleQueue()
         self._config_payloads: dict[str, bytes] = {}
 
@@ -198,8 +204,13 @@ class SimNode:
                         stats.max_late = max(stats.max_late, late)
                     # one tick's rows at a time: converting the whole block at its start held
                     # the first tick back by ~10 ms at 500 rigs
-                    for pub, row in zip(sample_pubs, blk.samples[:, j].tolist()):
-                        pub.put(sample_payload(seq, t, row))
+                    if self._with_u:
+                        rows, us = blk.samples[:, j].tolist(), blk.u[:, j].tolist()
+                        for i, (pub, row) in enumerate(zip(sample_pubs, rows)):
+                            pub.put(sample_payload(seq, t, row, us[i] if i in self._with_u else None))
+                    else:
+                        for pub, row in zip(sample_pubs, blk.samples[:, j].tolist()):
+                            pub.put(sample_payload(seq, t, row))
                     stats.samples += 1
                     stats.published += len(sample_pubs)
             if future is not None:
@@ -231,9 +242,6 @@ def run_sim(session: zenoh.Session, rigs: FleetSpec | Sequence[RigSpec], *, name
         Samples per rig computed per step.
     """
     spec = rigs if isinstance(rigs, FleetSpec) else FleetSpec(rigs=list(rigs))
-    node = SimNode(session, spec.ids, spec.build(), namespace=namespace, rate=rate, block=block)
+    node = SimNode(session, spec.ids, spec.build(), namespace=namespace, rate=rate, block=block,
+                   publish_u=[r.publishes_u for r in spec.rigs])
     return node.run(duration=duration, stop_event=stop_event)
-
-
-
-

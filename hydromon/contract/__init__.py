@@ -10,7 +10,7 @@ from hydromon.contract.keys import (
 )
 from hydromon.contract.names import CHANNELS, GRADES, PARAM_NAMES, PARAM_UNITS, SENSORS, UNKNOWN
 from hydromon.contract.payloads import (
-    LEAF_MODELS, RESTART_RUN, SAMPLE_COLUMNS, SAMPLE_LIMITS, SEQ_MAX, STATUSES, Health, Sample, schemas,
+    DRIVE, DRIVE_LIMIT, LEAF_MODELS, RESTART_RUN, SAMPLE_COLUMNS, SAMPLE_LIMITS, SEQ_MAX, STATUSES, Health, Sample, schemas,
 )
 from hydromon.contract.rig import RigConfig
 
@@ -18,6 +18,6 @@ __all__ = [
     "DEFAULT_NAMESPACE", "LEAVES", "RIG_ID_RE", "check_namespace", "config_key", "health_key", "liveliness_key",
     "parse_rig_key", "rig_key", "rig_key_parts", "sample_key", "split_rig_key", "valid_rig_id",
     "CHANNELS", "GRADES", "PARAM_NAMES", "PARAM_UNITS", "SENSORS", "UNKNOWN",
-    "LEAF_MODELS", "RESTART_RUN", "SAMPLE_COLUMNS", "SAMPLE_LIMITS", "SEQ_MAX", "STATUSES", "Health", "Sample",
+    "DRIVE", "DRIVE_LIMIT", "LEAF_MODELS", "RESTART_RUN", "SAMPLE_COLUMNS", "SAMPLE_LIMITS", "SEQ_MAX", "STATUSES", "Health", "Sample",
     "schemas", "RigConfig",
 ]

@@ -15,7 +15,7 @@ from hydromon.contract.names import CHANNELS, GRADES, UNKNOWN
 from hydromon.contract.rig import RigConfig
 
 __all__ = ["Sample", "Health", "SAMPLE_COLUMNS", "SAMPLE_LIMITS", "SEQ_MAX", "RESTART_RUN", "STATUSES",
-           "LEAF_MODELS", "schemas"]
+           "LEAF_MODELS", "DRIVE", "DRIVE_LIMIT", "schemas"]
 
 SEQ_MAX = 2**63 - 1  # seq is a signed 64-bit count (the monitor keeps it in int64 arrays)
 # Samples in a row below a rig's last seq, each above the one before, that the monitor takes as
@@ -26,6 +26,7 @@ RESTART_RUN = 50
 # volts) but below what overflows the estimators (one reading of 1e300 Pa would leave a rig's
 # estimates at -1e295 for good). A value outside is rejected as bad-value.
 SAMPLE_LIMITS = {"ug": 1e3, "x1": 10.0, "x3": 1e9, "x4": 1e9, "x5": 0.1}
+DRIVE_LIMIT = 1e3  # [V] |u|, the optional valve drive: the command's limit
 STATUSES = ("converging", "ok", "stale", "bad-input")
 
 
@@ -39,6 +40,10 @@ class Sample(_Payload):
     seq counts samples per rig from 0 (at most 2**63 - 1); t is the rig clock [s]; ug [V]; x1 piston position [m];
     x3, x4 chamber pressures [Pa]; x5 spool position [m]. Magnitudes are bounded (SAMPLE_LIMITS:
     |ug| <= 1e3 V, |x1| <= 10 m, |x3|, |x4| <= 1e9 Pa, |x5| <= 0.1 m).
+
+    u [V], optional: the valve drive signal the rig's controller sends to the valve amplifier
+    (|u| <= 1e3 V). When present the monitor takes it as the valve's input; without it, it
+    assumes the rig constants' proportional loop ``u = K_p (ug - K_f x1)``.
     """
 
     seq: int = Field(ge=0, le=SEQ_MAX)
@@ -48,6 +53,12 @@ class Sample(_Payload):
     x3: float = Field(ge=-SAMPLE_LIMITS["x3"], le=SAMPLE_LIMITS["x3"])
     x4: float = Field(ge=-SAMPLE_LIMITS["x4"], le=SAMPLE_LIMITS["x4"])
     x5: float = Field(ge=-SAMPLE_LIMITS["x5"], le=SAMPLE_LIMITS["x5"])
+    u: float | None = Field(None, ge=-DRIVE_LIMIT, le=DRIVE_LIMIT)
+
+    @field_validator("u", mode="before")
+    @classmethod
+    def _optional_number(cls, v):
+        return v if v is None else cls._number(v)
 
     @field_validator("t", *CHANNELS, mode="before")
     @classmethod
@@ -69,7 +80,9 @@ class Sample(_Payload):
 
 # the measured columns of a sample, in payload order: t [s], ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m]
 # (a CSV record's header and the columns of an MCAP's sample array)
-SAMPLE_COLUMNS = tuple(name for name in Sample.model_fields if name != "seq")
+SAMPLE_COLUMNS = tuple(name for name in Sample.model_fields if name not in ("seq", "u"))
+DRIVE = "u"
+"""The optional field of a sample: the valve drive [V]."""
 
 
 class Health(_Payload):

@@ -42,6 +42,7 @@ from hydromon.engine.validate import Rejected, decode_json, parse_config, parse_
 from hydromon.engine.health_json import health_payloads
 from hydromon.engine.sequence import DUPLICATE, GAP, OUT_OF_ORDER, RESTART, sequence_step
 from hydromon.engine.status import health_status
+from monitor.drive import command_for_drive
 from monitor.pipeline import Fleet
 
 __all__ = ["MonitorCore", "X1_CLAMPED_WARNING"]
@@ -345,6 +346,9 @@ class MonitorCore(RegularBatch):
 
     def _take(self, r: int, vals: tuple, out: list) -> None:
         """Sequence checks of a valid sample of the rig in row ``r``, then into the batch."""
+        if len(vals) == 8:  # the rig publishes its valve drive u: the identifier takes it exactly
+            config = self.rigs[self.fleet.ids[r]].config or RigConfig()
+            vals = (vals[0], vals[1], command_for_drive(vals[7], vals[3], config.K_p, config.K_f), *vals[3:7])
         seq, last, gap = vals[0], int(self._last[r]), int(self._gap[r])
         verdict, self._back_n[r], self._back_seq[r] = sequence_step(last, int(self._back_n[r]),
                                                                     int(self._back_seq[r]), seq)

@@ -31,6 +31,7 @@ class Recording:
     jitter_max: float = 0.0  # the largest disagreement of those intervals [s]
     config_changes: int = 0  # rig config changes in the record (MCAP)
     skipped: int = 0  # samples before the last config change, not evaluated
+    drive_samples: int = 0  # samples whose valve input is the drive u they carry (else K_p (ug - K_f x1))
 
     @property
     def duration(self) -> float:

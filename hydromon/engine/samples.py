@@ -3,7 +3,8 @@
 :func:`sample_payload` is how ``hydromon sim`` (on the bus and into files) encodes a sample;
 :func:`sim_samples` decodes a batch of payloads of exactly that shape in C (msgspec), into the
 tuples the monitor's batch path takes. The typed struct is derived from ``contract.Sample``'s
-fields, so there is one sample schema; anything else goes through ``hydromon.engine.validate``.
+fields, so there is one sample schema; anything else (a sample with the optional valve drive
+``u`` among them) goes through ``hydromon.engine.validate``.
 """
 
 from __future__ import annotations
@@ -14,23 +15,27 @@ from operator import itemgetter
 import msgspec
 import orjson
 
-from hydromon.contract import SEQ_MAX, Sample
+from hydromon.contract import SAMPLE_COLUMNS, SEQ_MAX
 
 __all__ = ["sample_payload", "sim_samples"]
 
 _SEQ = itemgetter(0)
 
 
-def sample_payload(seq: int, t: float, row: list) -> bytes:
-    """JSON of one sample: ``seq``, ``t`` [s] and ``row`` = ug [V], x1 [m], x3, x4 [Pa], x5 [m]."""
+def sample_payload(seq: int, t: float, row: list, u: float | None = None) -> bytes:
+    """JSON of one sample: ``seq``, ``t`` [s] and ``row`` = ug [V], x1 [m], x3, x4 [Pa], x5 [m];
+    with ``u``, the valve drive [V] too."""
+    if u is None:
+        return orjson.dumps({"seq": seq, "t": t, "ug": row[0], "x1": row[1], "x3": row[2], "x4": row[3],
+                             "x5": row[4]})
     return orjson.dumps({"seq": seq, "t": t, "ug": row[0], "x1": row[1], "x3": row[2], "x4": row[3],
-                         "x5": row[4]})
+                         "x5": row[4], "u": u})
 
 
-# the contract's sample fields, typed: an int seq and floats (msgspec takes an int for a float field)
+# the contract's required sample fields, typed: an int seq and floats (msgspec takes an int for a
+# float field); a sample with the optional drive u is not what the sim sends and goes one by one
 _SimSample = msgspec.defstruct(
-    "_SimSample", [(name, int if name == "seq" else float) for name in Sample.model_fields],
-    forbid_unknown_fields=True)
+    "_SimSample", [("seq", int), *((name, float) for name in SAMPLE_COLUMNS)], forbid_unknown_fields=True)
 _DECODE_SIM = msgspec.json.Decoder(_SimSample).decode
 
 

@@ -34,7 +34,7 @@ __all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_c
 
 REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-field", "wrong-type",
                   "unknown-field", "bad-value", "too-many-rigs")
-_SAMPLE_FIELD_SET = frozenset(Sample.model_fields)
+_SAMPLE_FIELD_SET = frozenset(("seq", *SAMPLE_COLUMNS))  # a sample without the optional drive u
 _NUM = (float, int)
 _SEQ = itemgetter(0)
 _L_UG, _L_X1, _L_X3, _L_X4, _L_X5 = (SAMPLE_LIMITS[k] for k in SAMPLE_COLUMNS[1:])
@@ -100,9 +100,10 @@ def decode_json(payload: bytes):
         raise Rejected("non-finite", "NaN or infinity in the JSON") from None
 
 
-def parse_sample(obj) -> tuple[int, float, float, float, float, float, float]:
+def parse_sample(obj) -> tuple:
     """``(seq, t, ug, x1, x3, x4, x5)`` of a decoded sample payload, validated as
-    ``contract.Sample`` (a fast path for the common valid case; the model decides the rest)."""
+    ``contract.Sample`` (a fast path for the common valid case; the model decides the rest),
+    and the valve drive ``u`` [V] as an eighth value when the sample carries one."""
     if type(obj) is dict and len(obj) == 7 and obj.keys() == _SAMPLE_FIELD_SET:
         seq = obj["seq"]
         t, ug, x1, x3, x4, x5 = obj["t"], obj["ug"], obj["x1"], obj["x3"], obj["x4"], obj["x5"]
@@ -128,6 +129,8 @@ def parse_sample(obj) -> tuple[int, float, float, float, float, float, float]:
         raise Rejected(*_classify(exc, obj)) from None
     except OverflowError:  # an integer beyond any double (the bus's JSON decode refuses it first)
         raise Rejected("non-finite", "a number beyond the range of a double") from None
+    if s.u is not None:
+        return (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5, s.u)
     return (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5)  # pragma: no cover (fast path takes these)
 
 

@@ -31,18 +31,17 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from hydromon.contract import valid_rig_id
-from plant_sim.degradation import degrade, table4_group
+from hydromon.contract import RigConfig, valid_rig_id
+from plant_sim.degradation import degrade, degrade_relative, table4_group
 from plant_sim.live import PlantFleet
 from plant_sim.noise import noise_model
-from hydromon.contract import RigConfig
-from plant_sim.params import EFFECT_NAMES, Effects, PlantParams
+from plant_sim.params import EFFECT_NAMES, Controller, Effects, PlantParams
 from plant_sim.profiles import parse_profile
 from plant_sim.validation import brief_error
 
 __all__ = [
     "EFFECT_FIELDS", "RigSpec", "FleetSpec", "parse_effect", "load_fleet", "default_fleet",
-    "spread_fleet", "rig_seeds", "brief_error",
+    "spread_fleet", "rig_seeds", "brief_error", "parse_controller",
 ]
 
 EFFECT_FIELDS = {
@@ -69,6 +68,31 @@ def parse_effect(text: str) -> tuple[str, float]:
         return name, float(value)
     except ValueError:
         raise ValueError(f"effect {name!r}: magnitude {value.strip()!r} is not a number") from None
+
+
+def parse_controller(text: str) -> Controller:
+    """``"p"`` (the rig constants' proportional loop) or ``"pi:ki=K_I,kff=K_FF"`` (K_I [1/s],
+    K_FF [s]; either may be left out) -> ``plant_sim.params.Controller``."""
+    kind, _, rest = text.partition(":")
+    kind = kind.strip()
+    if kind == "p" and not rest.strip():
+        return Controller()
+    if kind != "pi":
+        raise ValueError(f"controller {text!r}: expected p or pi:ki=K_I,kff=K_FF")
+    fields = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, eq, value = item.partition("=")
+        key = {"ki": "K_i", "kff": "K_ff"}.get(key.strip())
+        if key is None or not eq:
+            raise ValueError(f"controller {text!r}: {item!r} is not ki=K_I or kff=K_FF")
+        try:
+            fields[key] = float(value)
+        except ValueError:
+            raise ValueError(f"controller {text!r}: {value.strip()!r} is not a number") from None
+    try:
+        return Controller(**fields)
+    except ValidationError as exc:
+        raise ValueError(f"controller {text!r}: {brief_error(exc)}") from None
 
 
 def _check_effect_name(name: str) -> None:
@@ -99,6 +123,19 @@ class RigSpec(BaseModel):
         Effect name -> magnitude in the unit of :data:`EFFECT_FIELDS`.
     sensor_delay_loop : bool
         The sensor delay acts inside the control loop too.
+    base : dict
+        The rig's own healthy plant: ``PlantParams`` fields overriding Table 1 (SI). With a
+        severity the rig degrades relative to this plant (``degrade_relative``), as a rig of
+        another size degrades from itself; without, severities follow the reference rig's
+        absolute Table 3 values.
+    config : dict
+        ``RigConfig`` fields overriding the fleet's shared constants for this rig (SI).
+    controller : str
+        ``p``: the rig constants' proportional loop; ``pi:ki=K_I,kff=K_FF``: a digital PI loop
+        with feed-forward (``plant_sim.params.Controller``: K_I [1/s], K_FF [s]).
+    publish_u : bool, optional
+        Publish the valve drive ``u`` [V] in every sample; default: when the controller is not
+        the proportional loop (a monitor cannot know such a loop's drive otherwise).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -112,6 +149,10 @@ class RigSpec(BaseModel):
     noise: str = "none"
     effects: dict[str, float] = Field(default_factory=dict)
     sensor_delay_loop: bool = False
+    base: dict[str, float] = Field(default_factory=dict)
+    config: dict[str, float] = Field(default_factory=dict)
+    controller: str = "p"
+    publish_u: bool | None = None
 
     @field_validator("id")
     @classmethod
@@ -134,13 +175,28 @@ class RigSpec(BaseModel):
             raise ValueError(f"table4 group {v!r} must be 1..5")
         return v
 
-    @field_validator("params")
+    @field_validator("params", "base")
     @classmethod
     def _params(cls, v):
         unknown = sorted(set(v) - set(PlantParams.model_fields))
         if unknown:
             raise ValueError(f"unknown plant parameter(s) {', '.join(map(repr, unknown))}; "
                              f"choose from {', '.join(PlantParams.model_fields)}")
+        return v
+
+    @field_validator("config")
+    @classmethod
+    def _config(cls, v):
+        unknown = sorted(set(v) - set(RigConfig.model_fields))
+        if unknown:
+            raise ValueError(f"unknown rig constant(s) {', '.join(map(repr, unknown))}; "
+                             f"choose from {', '.join(RigConfig.model_fields)}")
+        return v
+
+    @field_validator("controller")
+    @classmethod
+    def _controller(cls, v):
+        parse_controller(v)
         return v
 
     @field_validator("effects", mode="before")
@@ -169,22 +225,53 @@ class RigSpec(BaseModel):
     def _check(self) -> "RigSpec":
         if self.severity is not None and self.table4 is not None:
             raise ValueError(f"rig {self.id!r}: give severity or table4, not both")
+        if self.table4 is not None and self.base:
+            raise ValueError(f"rig {self.id!r}: a Table 4 group is the reference rig's plant; give base or table4")
         self.plant()
         self.effects_model()
         return self
 
-    def plant(self) -> PlantParams:
-        """The rig's plant: degraded to severity, or a Table 4 group, or Table 1; then params."""
-        if self.table4 is not None:
-            base = table4_group(self.table4)
-        elif self.severity is not None:
-            base = degrade(self.severity)
-        else:
-            base = PlantParams()
+    def rig_config(self, shared: RigConfig | None = None) -> RigConfig:
+        """The rig's constants: the fleet's ``shared`` ones with this rig's ``config`` fields."""
+        shared = shared or RigConfig()
+        if not self.config:
+            return shared
         try:
-            return PlantParams(**{**base.model_dump(), **self.params})
+            return RigConfig(**{**shared.model_dump(), **self.config})
+        except ValidationError as exc:
+            raise ValueError(f"rig {self.id!r} config: {brief_error(exc)}") from None
+
+    def healthy(self) -> PlantParams:
+        """The rig's plant when new: Table 1 with ``base``."""
+        try:
+            return PlantParams(**{**PlantParams().model_dump(), **self.base})
+        except ValidationError as exc:
+            raise ValueError(f"rig {self.id!r} base: {brief_error(exc)}") from None
+
+    def plant(self, shared: RigConfig | None = None) -> PlantParams:
+        """The rig's plant: a Table 4 group, or degraded to severity (relative to ``base`` when
+        given), or its healthy plant; then ``params``. ``shared``: the fleet's constants."""
+        if self.table4 is not None:
+            plant = table4_group(self.table4)
+        elif self.severity is not None and self.base:
+            plant = degrade_relative(self.severity, self.healthy(), self.rig_config(shared))
+        elif self.severity is not None:
+            plant = degrade(self.severity)
+        else:
+            plant = self.healthy()
+        try:
+            return PlantParams(**{**plant.model_dump(), **self.params})
         except ValidationError as exc:
             raise ValueError(f"rig {self.id!r} params: {brief_error(exc)}") from None
+
+    def controller_model(self) -> Controller:
+        """The rig's ``plant_sim.params.Controller``."""
+        return parse_controller(self.controller)
+
+    @property
+    def publishes_u(self) -> bool:
+        """Whether the rig publishes its valve drive u in each sample."""
+        return self.controller_model().digital if self.publish_u is None else self.publish_u
 
     def effects_model(self) -> Effects:
         """The rig's ``plant_sim.params.Effects``."""
@@ -245,16 +332,22 @@ class FleetSpec(BaseModel):
         rigs = [RigSpec(**{**r.model_dump(), **fields}) for r in self.rigs]
         return FleetSpec(config=self.config, seed=self.seed, rigs=rigs)
 
+    def configs(self) -> list[RigConfig]:
+        """Each rig's constants (the shared ones with its own overrides)."""
+        return [r.rig_config(self.config) for r in self.rigs]
+
     def build(self, substeps: int | None = None) -> PlantFleet:
         """The ``PlantFleet`` simulating these rigs."""
         kw = {} if substeps is None else {"substeps": substeps}
+        configs = self.configs()
         return PlantFleet(
-            self.config,
-            [r.plant() for r in self.rigs],
+            configs,
+            [r.plant(self.config) for r in self.rigs],
             [parse_profile(r.profile) for r in self.rigs],
             [r.effects_model() for r in self.rigs],
-            [noise_model(r.noise, self.config) for r in self.rigs],
+            [noise_model(r.noise, c) for r, c in zip(self.rigs, configs)],
             self.seeds(),
+            controllers=[r.controller_model() for r in self.rigs],
             **kw,
         )
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import logging
 import struct
 import zlib
@@ -224,7 +225,7 @@ def _rig_topics(src, leaf: str, rig: str | None) -> dict[str, str]:
 
 
 def read_samples(src, rig: str | None = None, rejected: list | None = None,
-                 configs: list | None = None) -> tuple[str, np.ndarray, np.ndarray]:
+                 configs: list | None = None, drive: list | None = None) -> tuple[str, np.ndarray, np.ndarray]:
     """One rig's samples: ``(rig_id, data, seq)``.
 
     ``data`` is float64 ``(N, 6)`` with columns :data:`SAMPLE_COLUMNS` (t [s], ug [V],
@@ -238,6 +239,9 @@ def read_samples(src, rig: str | None = None, rejected: list | None = None,
     pass and appended as ``(i, RigConfig)``: i is the index in ``data`` of the first sample
     that follows the config in log time (where a live monitor would switch to it). A config
     that is not a valid RigConfig is left out, as the monitor rejects it (the recorder logged it).
+
+    With a ``drive`` list, each sample's valve drive ``u`` [V] is appended to it (NaN for a
+    sample without one), so ``drive[i]`` belongs to ``data[i]``.
     """
     rigs = _rig_topics(src, "sample", rig)
     if not rigs:
@@ -271,6 +275,8 @@ def read_samples(src, rig: str | None = None, rejected: list | None = None,
             continue
         rows.append((s.t, s.ug, s.x1, s.x3, s.x4, s.x5))
         seqs.append(s.seq)
+        if drive is not None:
+            drive.append(math.nan if s.u is None else s.u)
     data = np.array(rows, dtype=np.float64).reshape(len(rows), len(SAMPLE_COLUMNS))
     return rig, data, np.array(seqs, dtype=np.int64)
 

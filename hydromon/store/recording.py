@@ -21,6 +21,7 @@ from hydromon.contract import RigConfig
 from hydromon.engine.sequence import DUPLICATE, GAP, OUT_OF_ORDER, RESTART, TAKEN, sequence_verdicts
 from hydromon.engine.record import Recording
 from hydromon.store.csvfile import read_csv
+from monitor.drive import command_for_drive
 from hydromon.store.sampling import check_sampling, time_jitter
 
 __all__ = ["Recording", "load_recording"]
@@ -60,6 +61,16 @@ def _after_last_change(messages: list[tuple[int, RigConfig]], stored: list[RigCo
     return current, first, changes
 
 
+def _take_drive(data: np.ndarray, u: np.ndarray, config: RigConfig) -> int:
+    """Where a sample carries the valve drive u [V], make its command the one under which the
+    rig constants' loop drives the valve with u (``monitor.drive``), in place in ``data``
+    (columns t, ug, x1, ...); returns how many samples did."""
+    has = np.isfinite(u)
+    if has.any():
+        data[has, 1] = command_for_drive(u[has], data[has, 2], config.K_p, config.K_f)
+    return int(has.sum())
+
+
 def _config_key(config: RigConfig) -> tuple:
     return tuple(config.model_dump().items())
 
@@ -76,7 +87,8 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
     ``rig`` picks the rig of a multi-rig MCAP (a CSV holds one rig, called ``csv``). The rig
     constants are ``config`` if given (for the whole record), else the recording's (MCAP:
     those after the last config change, and only the samples after it are kept), else the
-    defaults (the paper's rig, ``RigConfig()``).
+    defaults (the paper's rig, ``RigConfig()``). A sample's valve drive ``u``, where it has one,
+    is the valve's input (``monitor.drive``).
     """
     path = Path(path)
     name = str(path)
@@ -84,11 +96,13 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
     if suffix == ".csv":
         if rig is not None:
             raise ValueError("--rig selects a rig of an MCAP recording; a CSV holds one rig")
-        data = read_csv(path)
+        drive: list[float] = []
+        data = read_csv(path, drive=drive)
         config = config or RigConfig()
         restarts, missing = check_sampling(data[:, 0], config.sample_rate, lambda i: f"{name} line {i + 2}")
+        driven = _take_drive(data, np.array(drive), config)
         return Recording("csv", data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
-                         tuple(restarts), missing)
+                         tuple(restarts), missing, drive_samples=driven)
     if suffix == ".mcap":
         try:
             from hydromon.store import mcap_read
@@ -99,7 +113,9 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         try:
             rejected: list[str] = []
             messages: list[tuple[int, RigConfig]] = []
-            rig_id, data, seq = mcap_read.read_samples(str(path), rig=rig, rejected=rejected, configs=messages)
+            drive: list[float] = []
+            rig_id, data, seq = mcap_read.read_samples(str(path), rig=rig, rejected=rejected, configs=messages,
+                                                       drive=drive)
             stored = mcap_read.stored_configs(str(path), rig_id) if config is None else []
         except ValueError as exc:
             raise ValueError(_named(name, exc).replace("; choose one", "; choose one with --rig ID")) from None
@@ -135,10 +151,11 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         restarts = [i - n_before for i in gaps_at if i - n_before > 0]
         idx = idx[n_before:]
         data, seq = data[idx], seq[idx]
+        driven = _take_drive(data, np.array(drive)[idx], config)
         jitter, jitter_max = time_jitter(data[:, 0], seq, config.sample_rate)
         return Recording(rig_id, data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
                          tuple(restarts), missing, len(rejected), duplicate, out_of_order,
-                         jitter, jitter_max, changes, first)
+                         jitter, jitter_max, changes, first, driven)
     raise ValueError(f"{name}: unknown file type {path.suffix!r}; give a .csv (t,ug,x1,x3,x4,x5) or .mcap")
 
 

@@ -11,7 +11,7 @@ import math
 
 import orjson
 
-from hydromon.contract import DEFAULT_NAMESPACE, config_key, sample_key
+from hydromon.contract import DEFAULT_NAMESPACE, DRIVE, SAMPLE_COLUMNS, config_key, sample_key
 from hydromon.engine.samples import sample_payload
 from hydromon.store.fleetfile import FleetSpec
 from plant_sim.live import PlantFleet
@@ -70,7 +70,8 @@ def file_bytes(kind: str, duration: float, h: float, n_rigs: int = 1) -> float:
 
 
 def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None, on_block=None) -> int:
-    """Write one rig's run of ``duration`` [s] as CSV ``t,ug,x1,x3,x4,x5`` (SI) to a text stream.
+    """Write one rig's run of ``duration`` [s] as CSV ``t,ug,x1,x3,x4,x5`` (SI) to a text stream,
+    and ``u`` (the valve drive [V]) when the rig publishes it.
 
     ``rig`` picks a rig of the fleet by id (needed if it has several). ``on_block(done, total)``
     (samples) is called after each block. Returns the row count.
@@ -78,11 +79,13 @@ def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None, 
     one = select_rig(spec, rig)
     n = _n_samples(duration, one.config.h)  # before the first byte
     fleet = one.build()
-    stream.write("t,ug,x1,x3,x4,x5\n")
+    with_u = one.rigs[0].publishes_u
+    stream.write(",".join((*SAMPLE_COLUMNS, DRIVE) if with_u else SAMPLE_COLUMNS) + "\n")
     rows = 0
     for blk in iter_blocks(fleet, n):
-        for t, row in zip(blk.t.tolist(), blk.samples[0].tolist()):
-            stream.write(",".join(map(repr, [t, *row])) + "\n")
+        us = blk.u[0].tolist() if with_u else None
+        for j, (t, row) in enumerate(zip(blk.t.tolist(), blk.samples[0].tolist())):
+            stream.write(",".join(map(repr, [t, *row, us[j]] if with_u else [t, *row])) + "\n")
             rows += 1
         if on_block is not None:
             on_block(rows, n)
@@ -102,16 +105,17 @@ def write_mcap(spec: FleetSpec, duration: float, stream, namespace: str = DEFAUL
     n = _n_samples(duration, spec.config.h)  # before the first byte
     fleet = spec.build()
     skeys = [sample_key(i, namespace) for i in spec.ids]
+    with_u = [r.publishes_u for r in spec.rigs]
     with RecordingWriter(stream) as writer:
         for i, key in enumerate(config_key(i, namespace) for i in spec.ids):
             writer.write(key, orjson.dumps(fleet.configs[i].model_dump(mode="json")), 0, 0)
         done = 0
         for blk in iter_blocks(fleet, n, block=100):
-            rows = blk.samples.tolist()
+            rows, us = blk.samples.tolist(), blk.u.tolist()
             for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
                 t_ns = int(round(t * 1e9))
                 for r, key in enumerate(skeys):
-                    writer.write(key, sample_payload(seq, t, rows[r][j]), t_ns, t_ns)
+                    writer.write(key, sample_payload(seq, t, rows[r][j], us[r][j] if with_u[r] else None), t_ns, t_ns)
             done += len(blk.t)
             if on_block is not None:
                 on_block(done, n)

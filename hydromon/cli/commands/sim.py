@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import threading
@@ -34,6 +35,11 @@ def add_arguments(parser) -> None:
     g.add_argument("--sensor-delay-loop", action="store_true", default=None,
                    help="the sensor delay acts inside the control loop too")
     g.add_argument("--seed", type=int, default=None, help="base seed of noise (and random severities)")
+    g.add_argument("--controller", metavar="SPEC", default=None,
+                   help="every rig's position loop: p (the rig constants' proportional loop, default) or "
+                   "pi:ki=K_I,kff=K_FF (a digital PI loop with feed-forward, K_I [1/s], K_FF [s])")
+    g.add_argument("--publish-u", action=argparse.BooleanOptionalAction, default=None,
+                   help="publish each rig's valve drive u [V] in its samples (default: when its loop is not p)")
     r = parser.add_argument_group("run")
     r.add_argument("--rate", type=float, default=1.0,
                    help="speed relative to real time, 0 = as fast as possible (default 1)")
@@ -71,7 +77,8 @@ def build_fleet(args):
     if args.effect is not None:
         effects = dict(parse_effect(e) for e in args.effect)
     return spec.with_overrides(severity=args.severity, profile=args.profile, noise=args.noise,
-                               effects=effects, sensor_delay_loop=args.sensor_delay_loop)
+                               effects=effects, sensor_delay_loop=args.sensor_delay_loop,
+                               controller=args.controller, publish_u=args.publish_u)
 
 
 class Progress:
