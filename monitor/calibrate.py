@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hydromon.contract import PARAM_NAMES
+from hydromon.contract import GRADES, PARAM_NAMES
 from plant_sim.degradation import degrade
 from hydromon.contract import RigConfig
 from plant_sim.profiles import PaperIdentification
@@ -42,7 +42,7 @@ from plant_sim.profiles import PaperIdentification
 from .grading import ParamRange, Ranges
 from .ident_options import IdentOptions
 
-__all__ = ["BAND_EDGES", "RunResults", "Calibration", "x1_thresholds", "label_runs", "calibrate",
+__all__ = ["BAND_EDGES", "RunResults", "Calibration", "x1_thresholds", "label_runs", "calibrate", "fit_ranges",
            "simulate_runs", "identify_fleet", "severities"]
 
 BAND_EDGES = (0.2, 0.4, 0.6, 0.8)
@@ -140,8 +140,65 @@ def _label_ranges(values: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return out
 
 
+def fit_ranges(params: np.ndarray, labels: np.ndarray, template: Ranges, strict: bool = True,
+               labels_present=range(5)) -> tuple[dict, dict, dict]:
+    """Band edges of the template's parameters from identified values and their grade labels.
+
+    params (N, len(PARAM_NAMES)) [SI]; labels (N,) in 0..4. Edge j (between grades j and j+1)
+    is the midpoint of the gap between the two grades' values (in the worsening direction, read
+    off the data: the worst present grade's median against the best's), or of their medians
+    where they overlap; only edges whose two grades are in ``labels_present`` are fitted (the
+    rest NaN). A two-level parameter gets one threshold between the grades below fault and fault.
+    Returns ``(edges by name: (direction, 4 edges or threshold), overlaps, dropped)``; a
+    parameter whose fitted edges are not monotone raises ValueError, or with ``strict`` False
+    goes into ``dropped`` with the reason.
+    """
+    present = sorted(set(int(j) for j in labels_present))
+    out, overlaps, dropped = {}, {}, {}
+    for name, tpl in template.params.items():
+        v = params[:, PARAM_NAMES.index(name)]
+        med = {j: np.median(v[labels == j]) for j in present}
+        s = 1.0 if med[present[-1]] > med[present[0]] else -1.0
+        direction = "rising" if s > 0 else "falling"
+        if tpl.fault_threshold is not None:
+            if 4 not in present or not any(j < 4 for j in present):
+                out[name] = (direction, None)
+                continue
+            healthy, fault = s * v[labels < 4], s * v[labels == 4]
+            lo, hi = healthy.max(), fault.min()
+            if hi < lo:
+                overlaps[name] = [3]
+                thr = 0.5 * (np.median(healthy) + np.median(fault))
+            else:
+                thr = 0.5 * (lo + hi)
+            out[name] = (direction, float(s * thr))
+            continue
+        e = []
+        for j in range(4):
+            if j not in present or j + 1 not in present:
+                e.append(np.nan)
+                continue
+            a, b = s * v[labels == j], s * v[labels == j + 1]
+            if a.max() <= b.min():
+                e.append(0.5 * (a.max() + b.min()))
+            else:
+                overlaps.setdefault(name, []).append(j)
+                e.append(0.5 * (np.median(a) + np.median(b)))
+        fitted = np.array(e)
+        known = fitted[np.isfinite(fitted)]
+        if not np.all(np.diff(known) > 0):
+            msg = (f"{name}: calibrated edges {[round(float(s * x), 6) for x in fitted]} are not monotone "
+                   "(the labels' values overlap too much); use more runs or less noise")
+            if strict:
+                raise ValueError(msg)
+            dropped[name] = msg
+            continue
+        out[name] = (direction, tuple(float(s * x) for x in fitted))
+    return out, overlaps, dropped
+
+
 def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_EDGES,
-              strict: bool = True) -> Calibration:
+              strict: bool = True, rig: RigConfig | None = None) -> Calibration:
     """Health ranges from identified runs (module docstring, steps 2-4). Pure.
 
     Parameters
@@ -154,6 +211,9 @@ def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_ED
         True: a parameter whose edges come out non-monotone is a ValueError. False: it is
         left out of the ranges and listed in ``Calibration.dropped`` (e.g. B + f_v under
         realistic noise, whose bands are ~1 % wide, below a 10 s run's precision).
+    rig : RigConfig
+        The rig constants the runs were simulated with: the ranges are made for them (default
+        the reference rig's).
     """
     template = template or Ranges.default()
     th = x1_thresholds(results.severity, results.x1_mean, edges)
@@ -167,38 +227,9 @@ def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_ED
         raise ValueError(f"label(s) {missing} have no converged run; use more runs")
     pars = results.params[use]
     label_ranges = {k: _label_ranges(pars[:, i], lab) for i, k in enumerate(PARAM_NAMES)}
-    out, overlaps, dropped = {}, {}, {}
-    for name, tpl in template.params.items():
-        v = pars[:, PARAM_NAMES.index(name)]
-        med = np.array([np.median(v[lab == j]) for j in range(5)])
-        s = 1.0 if med[4] > med[0] else -1.0
-        direction = "rising" if s > 0 else "falling"
-        if tpl.fault_threshold is not None:
-            healthy, fault = s * v[lab < 4], s * v[lab == 4]
-            lo, hi = healthy.max(), fault.min()
-            if hi < lo:
-                overlaps[name] = [3]
-                thr = 0.5 * (np.median(healthy) + np.median(fault))
-            else:
-                thr = 0.5 * (lo + hi)
-            out[name] = ParamRange(direction=direction, fault_threshold=float(s * thr))
-            continue
-        e = []
-        for j in range(4):
-            a, b = s * v[lab == j], s * v[lab == j + 1]
-            if a.max() <= b.min():
-                e.append(0.5 * (a.max() + b.min()))
-            else:
-                overlaps.setdefault(name, []).append(j)
-                e.append(0.5 * (np.median(a) + np.median(b)))
-        if not np.all(np.diff(e) > 0):
-            msg = (f"{name}: calibrated edges {[round(float(s * x), 6) for x in e]} are not monotone "
-                   "(the labels' values overlap too much); use more runs or less noise")
-            if strict:
-                raise ValueError(msg)
-            dropped[name] = msg
-            continue
-        out[name] = ParamRange(direction=direction, edges=tuple(float(s * x) for x in e))
+    fitted, overlaps, dropped = fit_ranges(pars, lab, template, strict)
+    out = {name: ParamRange(direction=d, **({"fault_threshold": x} if isinstance(x, float) else {"edges": x}))
+           for name, (d, x) in fitted.items()}
     src = (f"hydromon calibrate: {int(use.sum())} converged runs of {len(labels)}, severities evenly over [0, 1], "
            f"labelled by x1-mean thresholds {[round(float(x), 6) for x in th]} m (the x1 mean at severity "
            f"{list(edges)}); edges are midpoints between adjacent labels' [min, max] (medians where they overlap)")
@@ -206,8 +237,8 @@ def calibrate(results: RunResults, template: Ranges | None = None, edges=BAND_ED
         src += f"; left out (labels not separable): {', '.join(dropped)}"
     if not out:
         raise ValueError("no graded parameter could be calibrated: " + "; ".join(dropped.values()))
-    return Calibration(Ranges(params=out, source=src), th, labels, label_ranges, overlaps, int(use.sum()),
-                       dropped)
+    return Calibration(Ranges(params=out, source=src, rig=rig or RigConfig()), th, labels, label_ranges, overlaps,
+                       int(use.sum()), dropped)
 
 
 def identify_fleet(samples: np.ndarray, config: RigConfig | None = None,
@@ -260,3 +291,60 @@ def simulate_runs(n: int, noise: str = "none", seed: int = 0, config: RigConfig 
         if progress is not None:
             progress(hi - lo)
     return RunResults(sev, x1m, params, conv)
+
+
+def calibrate_labelled(params: np.ndarray, labels: np.ndarray, rig: RigConfig, template: Ranges | None = None,
+                       commissioned: Ranges | None = None, what: str = "") -> Ranges:
+    """Health ranges of one rig from its own labelled records (the method's section 4.1 on
+    measured data): ``params`` (N, len(PARAM_NAMES)) identified [SI], ``labels`` (N,) their
+    grades 0..4 (e.g. from maintenance records).
+
+    Edges between two grades that both have records come from the records (:func:`fit_ranges`);
+    the others from ``commissioned`` (the rig's commissioned ranges: its baseline's relative
+    bands), so a plant with records of some grades only still gets every edge. Without it, a
+    grade with no record is a ValueError naming it. ``template`` (default ``Ranges.default()``)
+    says which parameters are graded. ``what`` describes the records (for the file's source).
+    """
+    template = template or Ranges.default()
+    labels = np.asarray(labels, dtype=np.int64)
+    ok = np.all(np.isfinite(params), axis=1)
+    params, labels = params[ok], labels[ok]
+    present = sorted(set(labels.tolist()))
+    if len(present) < 2 and commissioned is None:
+        raise ValueError(f"records of {len(present)} grade(s) only: labelled calibration needs two grades or more, "
+                         "or a commissioned ranges file (--baseline) for the rest")
+    if commissioned is not None and commissioned.made_for(rig) is not None:
+        raise ValueError(f"--baseline ranges: {commissioned.made_for(rig)}")
+    graded = Ranges(params={k: v for k, v in template.params.items()
+                            if commissioned is None or k in commissioned.params}, rig=rig)
+    fitted, _, dropped = fit_ranges(params, labels, graded, strict=False, labels_present=present)
+    out, missing = {}, set()
+    for name, (direction, x) in fitted.items():
+        base = None if commissioned is None else commissioned.params.get(name)
+        if x is None or isinstance(x, tuple) and not all(np.isfinite(x)):
+            if base is None:
+                missing |= {j for j in range(5) if j not in present}
+                continue
+            if x is None:
+                x = base.fault_threshold
+            else:
+                x = tuple(e if np.isfinite(e) else b for e, b in zip(x, base.edges))
+        kind = {"fault_threshold": x} if isinstance(x, float) else {"edges": x}
+        try:
+            out[name] = ParamRange(direction=direction, **kind)
+        except ValueError as exc:
+            dropped[name] = f"{name}: the records' edges and the commissioned ones are not in order ({exc})"
+    if missing:
+        names = ", ".join(GRADES[j] for j in sorted(missing))
+        raise ValueError(f"no record graded {names}: give records of every grade, or the rig's commissioned "
+                         "ranges (--baseline) for the edges they cannot place")
+    if not out:
+        raise ValueError("no graded parameter could be calibrated: " + "; ".join(dropped.values()))
+    src = (f"hydromon calibrate --labelled: {len(labels)} records ({what}) of grades "
+           f"{', '.join(GRADES[j] for j in present)}; edges between two recorded grades are midpoints between their "
+           "values (medians where they overlap)" + ("; the others from the commissioned ranges" if commissioned else ""))
+    if dropped:
+        src += f"; left out: {'; '.join(dropped.values())}"
+    return Ranges(params=out, source=src, rig=rig,
+                  baseline=commissioned.baseline if commissioned is not None else {},
+                  ungraded={k: v for k, v in dropped.items()})

@@ -2,10 +2,15 @@
 pydantic model and as the arrays the grading kernel reads. See ``monitor.grading`` for how a
 value is graded against them.
 
-Two files ship: ``monitor/data/table3.json``, the paper's Table 3 as printed (in SI units), and
+A ranges file is made for one rig: it names the rig constants it was made for (``rig``), and
+ranges are never applied to a rig whose constants differ (:meth:`Ranges.made_for`). Two files
+ship, both made for the reference rig (the constants ``RigConfig()`` defaults to):
+``monitor/data/table3.json``, the paper's Table 3 as printed (in SI units), and
 ``monitor/data/default_ranges.json``, the default: Table 3 with the valve graded on its static
 gain K_sv (edges / omega_sv^2 = 1e4) instead of K_sv omega^2, which a record without excitation
-at the valve's bandwidth does not identify (see that file's source note).
+at the valve's bandwidth does not identify (see that file's source note). Ranges for another
+rig come from ``hydromon commission`` (its baseline, noise and the record they were made from
+travel in the file) or ``hydromon calibrate --labelled``.
 """
 
 from __future__ import annotations
@@ -19,12 +24,25 @@ from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, mo
 
 from plant_sim.validation import brief_error
 
-from hydromon.contract import GRADES, PARAM_NAMES
+from hydromon.contract import GRADES, PARAM_NAMES, RigConfig
 
-__all__ = ["ParamRange", "Ranges", "RangeArrays", "grade_name", "DEFAULT_RANGES_PATH", "PAPER_TABLE3_PATH"]
+__all__ = ["ParamRange", "Ranges", "RangeArrays", "Estimate", "grade_name", "DEFAULT_RANGES_PATH", "PAPER_TABLE3_PATH",
+           "RIG_MATCH_RTOL", "RIG_MATCH_FIELDS"]
+
+# The constants that decide which rig ranges were made for: everything the identification uses.
+# The sensors' full-scale spans only set the simulator's "stress" noise model and are not compared.
+RIG_MATCH_FIELDS = ("A1", "A2", "V10", "V20", "p_s", "F_L", "K_p", "K_f", "sample_rate")
+# Rig constants are configuration, copied from one source: they agree to the last digit unless
+# someone changed them. The tolerance only absorbs a decimal round trip through a file format
+# that prints 7 significant digits (TOML or CSV written by hand, a spreadsheet).
+RIG_MATCH_RTOL = 1e-6
 
 PAPER_TABLE3_PATH = Path(__file__).with_name("data") / "table3.json"
 DEFAULT_RANGES_PATH = Path(__file__).with_name("data") / "default_ranges.json"
+
+
+def _close(a: float, b: float) -> bool:
+    return abs(a - b) <= RIG_MATCH_RTOL * max(abs(a), abs(b))
 
 
 def grade_name(level: int) -> str:
@@ -78,6 +96,14 @@ class ParamRange(BaseModel):
         return m
 
 
+class Estimate(BaseModel):
+    """A parameter's value [its SI unit] and standard error [same unit; None when unknown]."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    value: float
+    std_error: float | None = None
+
+
 class RangeArrays(NamedTuple):
     """Plain arrays for :func:`grade_kernel`: graded names, their index in the estimate vector,
     sign (+1 rising, -1 falling), edges and hysteresis margins (n_graded, 4) in grade order [SI]."""
@@ -90,11 +116,37 @@ class RangeArrays(NamedTuple):
 
 
 class Ranges(BaseModel):
-    """Health ranges: one :class:`ParamRange` per graded parameter, keyed by bus name."""
+    """Health ranges of one rig: one :class:`ParamRange` per graded parameter, keyed by bus name.
+
+    Attributes
+    ----------
+    params : dict
+        The graded parameters' ranges [SI].
+    source : str
+        How they were made, in words.
+    rig : RigConfig or None
+        The rig constants they were made for (None: unknown, so they apply to no rig).
+    baseline : dict
+        The rig's own healthy values (name -> :class:`Estimate`), when commissioned.
+    noise : dict
+        The sensors' noise rms they were made at: x1 [m], x3 [Pa], x4 [Pa], x5 [m].
+    made_on : str
+        The record they were made from (file and rig), and its length.
+    created : str
+        When (ISO 8601, UTC).
+    ungraded : dict
+        Parameters the reference ranges grade that these leave out, and why.
+    """
 
     model_config = ConfigDict(extra="forbid")
     params: dict[str, ParamRange]
     source: str = ""
+    rig: RigConfig | None = None
+    baseline: dict[str, Estimate] = {}
+    noise: dict[str, float] = {}
+    made_on: str = ""
+    created: str = ""
+    ungraded: dict[str, str] = {}
 
     @field_validator("params")
     @classmethod
@@ -141,6 +193,18 @@ class Ranges(BaseModel):
     def paper(cls) -> Ranges:
         """The paper's Table 3 as printed (``monitor/data/table3.json``)."""
         return cls.load(PAPER_TABLE3_PATH)
+
+    def made_for(self, config: RigConfig | None) -> str | None:
+        """None when these ranges were made for a rig with the constants ``config`` (None: the
+        reference rig's), else why not, in words (for the log and the commands' output)."""
+        config = config or RigConfig()
+        if self.rig is None:
+            return "the ranges name no rig constants they were made for"
+        diff = [f"{k} {getattr(config, k):g} (ranges made for {getattr(self.rig, k):g})" for k in RIG_MATCH_FIELDS
+                if not _close(getattr(config, k), getattr(self.rig, k))]
+        if not diff:
+            return None
+        return "the rig's constants differ from those the ranges were made for: " + ", ".join(diff)
 
     def save(self, path: str | Path) -> None:
         """Write as JSON (readable by :meth:`load`)."""

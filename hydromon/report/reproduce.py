@@ -144,7 +144,7 @@ def _table3(noise: str, runs: int, config: RigConfig):
     paper = Ranges.paper()
     dropped = {}
     if runs > 0:
-        cal = calibrate(simulate_runs(runs, noise=noise, config=config), strict=False)
+        cal = calibrate(simulate_runs(runs, noise=noise, config=config), strict=False, rig=config)
         ours, dropped = cal.ranges, cal.dropped
         source = f"calibration ({runs} runs, noise {noise}; monitor.calibrate)"
     else:
