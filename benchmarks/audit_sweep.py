@@ -17,7 +17,7 @@ Run: python benchmarks/audit_sweep.py
 
 from __future__ import annotations
 
-from hydromon.cli import jitcache
+from hydromon.tools import jitcache
 
 jitcache.configure()  # before any kernel is imported
 

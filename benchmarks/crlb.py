@@ -14,7 +14,7 @@ Run: python benchmarks/crlb.py [--seconds 10 60] [--noise realistic]
 
 from __future__ import annotations
 
-from hydromon.cli import jitcache
+from hydromon.tools import jitcache
 
 jitcache.configure()  # before any kernel is imported
 

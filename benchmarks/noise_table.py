@@ -6,7 +6,7 @@ truth lies inside our +-3 standard errors. Run: python benchmarks/noise_table.py
 
 from __future__ import annotations
 
-from hydromon.cli import jitcache
+from hydromon.tools import jitcache
 
 jitcache.configure()  # before any kernel is imported
 

@@ -5,7 +5,7 @@ Run: python benchmarks/plausibility_scan.py
 """
 from __future__ import annotations
 
-from hydromon.cli import jitcache
+from hydromon.tools import jitcache
 
 jitcache.configure()  # before any kernel is imported
 

@@ -10,7 +10,7 @@ its +-3 SE. Run: python benchmarks/valve_grading.py
 
 from __future__ import annotations
 
-from hydromon.cli import jitcache
+from hydromon.tools import jitcache
 
 jitcache.configure()  # before any kernel is imported
 

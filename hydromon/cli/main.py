@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import pkgutil
 import logging
 import os
+import pkgutil
 import sys
 import threading
 
-from hydromon.cli import commands, jitcache
+from hydromon.cli import commands
+from hydromon.tools import jitcache
 
 DESCRIPTION = ("physics-based health grading of hydraulic position servos (Lin et al. 2023): simulated "
                "or real rigs on Zenoh, graded live, recorded to MCAP; `hydromon COMMAND --help` for each")

@@ -109,7 +109,7 @@ def table(outcomes: list[Outcome]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hydromon.cli import jitcache
+    from hydromon.tools import jitcache
 
     jitcache.configure()
     ap = argparse.ArgumentParser(prog="python -m hydromon.tools.commission_sweep", description=__doc__.split("\n\n")[0])

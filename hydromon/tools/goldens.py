@@ -26,7 +26,12 @@ and commit ``recordings/``. Without ``--update`` the command checks the committe
 
 from __future__ import annotations
 
-import argparse
+if __name__ == "__main__":  # run as a program: numba's cache is set before any kernel is imported
+    from hydromon.tools import jitcache
+
+    jitcache.configure()
+
+import argparse  # noqa: E402
 import hashlib
 import os
 import sys

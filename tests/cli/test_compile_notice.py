@@ -6,7 +6,7 @@ import argparse
 
 import pytest
 
-from hydromon.cli import jitcache as _jitcache
+from hydromon.tools import jitcache as _jitcache
 from hydromon.cli import main as cli
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import time
 
-from hydromon.cli.jitcache import STALE_DAYS, prune
+from hydromon.tools.jitcache import STALE_DAYS, prune
 
 
 def test_stale_cache_directories_of_other_versions_are_removed(tmp_path):
