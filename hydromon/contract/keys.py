@@ -12,11 +12,11 @@ import re
 
 __all__ = [
     "DEFAULT_NAMESPACE", "LEAVES", "RIG_ID_RE", "valid_rig_id", "check_namespace", "rig_key", "sample_key",
-    "health_key", "config_key", "liveliness_key", "rig_key_parts", "split_rig_key", "parse_rig_key",
+    "health_key", "config_key", "event_key", "liveliness_key", "rig_key_parts", "split_rig_key", "parse_rig_key",
 ]
 
 DEFAULT_NAMESPACE = "hydro"
-LEAVES = ("sample", "health", "config")
+LEAVES = ("sample", "health", "config", "event")
 """The leaves of a rig's keys."""
 RIG_ID_RE = re.compile(r"[A-Za-z0-9_-]{1,64}")
 _NS_RE = re.compile(r"[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*")
@@ -51,6 +51,10 @@ def health_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
 
 def config_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
     return rig_key(rig_id, "config", ns)
+
+
+def event_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
+    return rig_key(rig_id, "event", ns)
 
 
 def liveliness_key(node: str, ns: str = DEFAULT_NAMESPACE) -> str:

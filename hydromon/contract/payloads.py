@@ -15,7 +15,7 @@ from hydromon.contract.names import CHANNELS, GRADES, UNKNOWN
 from hydromon.contract.rig import RigConfig
 
 __all__ = ["Sample", "Health", "SAMPLE_COLUMNS", "SAMPLE_LIMITS", "SEQ_MAX", "RESTART_RUN", "STATUSES",
-           "LEAF_MODELS", "DRIVE", "DRIVE_LIMIT", "schemas"]
+           "LEAF_MODELS", "DRIVE", "DRIVE_LIMIT", "EVENT_KINDS", "Event", "schemas"]
 
 SEQ_MAX = 2**63 - 1  # seq is a signed 64-bit count (the monitor keeps it in int64 arrays)
 # Samples in a row below a rig's last seq, each above the one before, that the monitor takes as
@@ -27,7 +27,7 @@ RESTART_RUN = 50
 # estimates at -1e295 for good). A value outside is rejected as bad-value.
 SAMPLE_LIMITS = {"ug": 1e3, "x1": 10.0, "x3": 1e9, "x4": 1e9, "x5": 0.1}
 DRIVE_LIMIT = 1e3  # [V] |u|, the optional valve drive: the command's limit
-STATUSES = ("converging", "ok", "stale", "bad-input")
+STATUSES = ("converging", "ok", "stale", "bad-input", "uncalibrated", "commissioning")
 
 
 class _Payload(BaseModel):
@@ -89,7 +89,10 @@ class Health(_Payload):
     """The monitor's verdict on a rig, ``<ns>/rig/<id>/health``.
 
     params are by the names in PARAM_NAMES (SI); param_grades grade the graded ones;
-    level is 0 (health) .. 4 (fault), null while the grade is unknown.
+    level is 0 (health) .. 4 (fault), null while the grade is unknown. ranges names the health
+    ranges the rig is graded on (absent or null: none apply, the rig is not graded). node and
+    epoch say who said it: the monitor node's name and its start (a count that grows with every
+    start of that node), so a reader can tell the rig's current monitor from an old or a forged one.
     """
 
     seq: int = Field(ge=0, le=SEQ_MAX)
@@ -101,12 +104,38 @@ class Health(_Payload):
     param_grades: dict[str, Literal[GRADES + (UNKNOWN,)]]
     status: Literal[STATUSES]
     std_errors: dict[str, float] = Field(default_factory=dict)
+    ranges: str | None = Field(None, max_length=120)
+    node: str | None = Field(None, pattern=r"^[A-Za-z0-9_-]{1,64}$")
+    epoch: int | None = Field(None, ge=0, le=SEQ_MAX)
 
 
-LEAF_MODELS = {"sample": Sample, "health": Health, "config": RigConfig}
+EVENT_KINDS = ("grade", "status")
+
+
+class Event(_Payload):
+    """A change of a rig's verdict, ``<ns>/rig/<id>/event``: its grade or its status moved (after
+    the grading's hysteresis, so a flapping estimate makes no event).
+
+    seq and t are those of the sample after which the change was seen [s]; ``from``/``to`` the
+    grades (``kind`` grade) or statuses (``kind`` status) before and after; reason says why in
+    words; node and epoch name the monitor that saw it, as in health.
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, populate_by_name=True)
+    seq: int = Field(ge=0, le=SEQ_MAX)
+    t: float
+    kind: Literal[EVENT_KINDS]
+    from_: str = Field(alias="from", max_length=32)
+    to: str = Field(max_length=32)
+    reason: str = Field("", max_length=400)
+    node: str | None = Field(None, pattern=r"^[A-Za-z0-9_-]{1,64}$")
+    epoch: int | None = Field(None, ge=0, le=SEQ_MAX)
+
+
+LEAF_MODELS = {"sample": Sample, "health": Health, "config": RigConfig, "event": Event}
 """The payload model of each leaf of a rig's keys."""
 
 
 def schemas() -> dict[str, dict]:
     """JSON Schemas of every payload, by payload name."""
-    return {m.__name__: m.model_json_schema() for m in LEAF_MODELS.values()}
+    return {m.__name__: m.model_json_schema(by_alias=True) for m in LEAF_MODELS.values()}

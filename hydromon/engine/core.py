@@ -8,8 +8,8 @@ Payloads are validated by ``hydromon.engine.validate``; each rig's sequence numb
 status of a verdict is ``hydromon.engine.status``'s. A batch's regular samples take a faster
 path with the same result (``hydromon.engine.batch``).
 
-``<ns>/rig/<id>/health`` keys are the monitor's own output (recordings hold them): they
-are skipped and counted as ``ignored``, not rejected. A rejected config leaves the rig graded on
+``<ns>/rig/<id>/health`` and ``.../event`` keys are the monitors' own output (recordings hold
+them): they are skipped and counted as ``ignored``, not rejected. A rejected config leaves the rig graded on
 the constants it had (its next health says ``bad-input``); a rig whose x1 went beyond a
 chamber's end since its estimates (re)started says ``bad-input`` too (``X1_CLAMPED_WARNING``;
 the grade stays). The first health after a gap, and every one until ``stale_samples`` (default
@@ -415,18 +415,18 @@ class MonitorCore(RegularBatch):
         parts = split_rig_key(key, self.namespace)
         if isinstance(parts, str):
             reason, detail = parts.split(": ", 1)
-            if reason == "bad-rig-id" and key.endswith("/health"):
-                self.counters.ignored += 1  # our own output kind, whatever the id
+            if reason == "bad-rig-id" and key.endswith(("/health", "/event")):
+                self.counters.ignored += 1  # our own output kinds, whatever the id
             else:
                 self._reject(reason, key, detail)
             return
         rig_id, leaf = parts
-        if leaf == "health":
-            self.counters.ignored += 1
-        elif leaf == "sample":
+        if leaf == "sample":
             self._on_sample(rig_id, key, payload, out)
-        else:
+        elif leaf == "config":
             self._on_config(rig_id, key, payload, out)
+        else:  # health and events: the monitors' own output (recordings hold them)
+            self.counters.ignored += 1
 
     def process(self, messages: Iterable[tuple[str, bytes]]) -> list[tuple[str, bytes]]:
         """Consume messages ``(key, payload bytes)`` in order; return the health messages
