@@ -12,12 +12,13 @@ import re
 
 __all__ = [
     "DEFAULT_NAMESPACE", "LEAVES", "RIG_ID_RE", "valid_rig_id", "check_namespace", "rig_key", "sample_key",
-    "health_key", "config_key", "event_key", "liveliness_key", "rig_key_parts", "split_rig_key", "parse_rig_key",
+    "health_key", "config_key", "event_key", "ranges_key", "liveliness_key", "rig_key_parts", "split_rig_key", "parse_rig_key",
 ]
 
 DEFAULT_NAMESPACE = "hydro"
-LEAVES = ("sample", "health", "config", "event")
-"""The leaves of a rig's keys."""
+LEAVES = ("sample", "health", "config", "event", "ranges")
+"""The leaves of a rig's keys (``ranges`` is only queried: a monitor answers with the health ranges
+it grades the rig on)."""
 RIG_ID_RE = re.compile(r"[A-Za-z0-9_-]{1,64}")
 _NS_RE = re.compile(r"[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*")
 
@@ -55,6 +56,10 @@ def config_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
 
 def event_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
     return rig_key(rig_id, "event", ns)
+
+
+def ranges_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
+    return rig_key(rig_id, "ranges", ns)
 
 
 def liveliness_key(node: str, ns: str = DEFAULT_NAMESPACE) -> str:

@@ -7,7 +7,7 @@ payloads). ``GRADES`` are the five health levels, 0 health .. 4 fault.
 
 from __future__ import annotations
 
-__all__ = ["PARAM_UNITS", "PARAM_NAMES", "GRADES", "UNKNOWN", "CHANNELS", "SENSORS"]
+__all__ = ["PARAM_UNITS", "PARAM_NAMES", "PARAM_WORDS", "GRADES", "UNKNOWN", "CHANNELS", "SENSORS"]
 
 PARAM_UNITS = {
     "m": "kg",                          # moving mass
@@ -24,6 +24,22 @@ PARAM_UNITS = {
     "K_sv": "m/V",                      # valve static gain
 }
 PARAM_NAMES = tuple(PARAM_UNITS)
+
+PARAM_WORDS = {
+    "m": "moving mass",
+    "B_fv": "viscous damping",
+    "f_c": "Coulomb friction",
+    "K_t": "load stiffness",
+    "inv_beta_e": "oil compressibility",
+    "CdW_sqrt_rho": "valve orifice coefficient",
+    "C_ip": "internal leakage",
+    "C_ep": "external leakage",
+    "two_zeta_omega": "valve damping",
+    "omega_sv2": "valve bandwidth",
+    "K_sv_omega_sv2": "valve gain times bandwidth",
+    "K_sv": "valve gain",
+}
+"""What each parameter is, in the words of a maintenance engineer."""
 
 GRADES = ("health", "sub-health", "average", "deterioration", "fault")
 UNKNOWN = "unknown"
