@@ -46,7 +46,7 @@ class Board:
         except ValidationError:
             self.invalid += 1
             return False
-        self.latest[parts[0]] = health.model_dump()
+        self.latest[parts[0]] = health.model_dump(exclude_unset=True)  # as published
         self.arrived[parts[0]] = now
         return True
 
