@@ -26,7 +26,9 @@ from pathlib import Path
 import orjson
 import zenoh
 
-from hydromon.bus.session import listening_session
+from contextlib import contextmanager
+
+from hydromon.bus.session import listening_session, make_config, open_session, summarize_config
 from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, parse_rig_key
 from hydromon.store.fleetfile import FleetSpec, default_fleet, true_grade
 from hydromon.report.demo import live_display, render_plain, render_rich
@@ -62,10 +64,29 @@ def _recording_path(out_dir: Path) -> Path:
     return path
 
 
+@contextmanager
+def _demo_session(zenoh_config=None):
+    """``(session, endpoint)``: the demo's embedded session and where other nodes reach it. A peer
+    on a free loopback port; with a zenoh configuration file, the file's session, on the file's
+    listen (or connect) endpoints if it names some, else on a free loopback port too."""
+    if zenoh_config is None:
+        with listening_session("peer") as pair:
+            yield pair
+        return
+    conf = make_config(None, (), (), False, zenoh_config)
+    summary = summarize_config(conf)
+    if summary.listen or summary.connect:
+        with open_session(config=conf, config_file=zenoh_config) as session:
+            yield session, (summary.listen or summary.connect)[0]
+    else:
+        with listening_session("router" if summary.mode == "router" else "peer", config_file=zenoh_config) as pair:
+            yield pair
+
+
 def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
              namespace: str = DEFAULT_NAMESPACE, fleet: FleetSpec | None = None,
              stop_event: threading.Event | None = None, live: bool | None = None,
-             plain_every: float = 3.0, stream=None, log=None) -> DemoResult:
+             plain_every: float = 3.0, stream=None, log=None, zenoh_config=None) -> DemoResult:
     """Run sim, monitor and recorder on one embedded session; show the grades; return.
 
     Parameters
@@ -85,6 +106,8 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
         (False); None = live if ``stream`` is a terminal.
     stream : text stream
         Where the table goes (default stdout); ``log`` gets progress lines (default stderr).
+    zenoh_config : path or None
+        A zenoh configuration file for the embedded session (:func:`_demo_session`).
     """
     from monitor.pipeline import warm_up
     from hydromon.engine.core import MonitorCore
@@ -115,7 +138,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
           "about a minute)...", file=log, flush=True)
     warm_up()
     # on a free loopback port (another if it was taken before the session bound it)
-    with listening_session("peer") as (session, endpoint):
+    with _demo_session(zenoh_config) as (session, endpoint):
         result = DemoResult(endpoint=endpoint, truth={r.id: true_grade(r) for r in spec.rigs})
         sub = session.declare_subscriber(f"{namespace}/rig/*/health", zenoh.handlers.FifoChannel(100_000))
 

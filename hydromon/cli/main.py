@@ -63,6 +63,10 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     notice = _compile_notice(args)
     try:
+        if getattr(args, "zenoh_config", None) is not None:  # a bad file: one line, before anything starts
+            from hydromon.bus.session import load_config_file
+
+            load_config_file(args.zenoh_config)
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         return 130

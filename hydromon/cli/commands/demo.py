@@ -24,6 +24,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--namespace", default="hydro", help="key expression prefix (default 'hydro')")
     parser.add_argument("--plain", action="store_true",
                         help="print a plain table every few seconds even on a terminal")
+    parser.add_argument("--zenoh-config", metavar="FILE", default=None,
+                        help="zenoh's own JSON5 configuration file for the embedded session (TLS, access "
+                             "control...); where it names no listen or connect endpoint the session listens on "
+                             "a free loopback port")
 
 
 def run(args) -> int:
@@ -37,13 +41,17 @@ def run(args) -> int:
     checks.non_negative("--rate", args.rate)
     check_namespace(args.namespace)
     checks.writable_dir("--out", args.out)
+    if args.zenoh_config is not None:
+        from hydromon.bus.session import load_config_file
+
+        load_config_file(args.zenoh_config)  # a bad file: one line, before the kernels load
     spec = load_fleet(args.fleet) if args.fleet else default_fleet()
     stop = threading.Event()
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
     try:
         result = run_demo(duration=args.duration or None, out_dir=args.out, rate=args.rate,
                           namespace=args.namespace, fleet=spec, stop_event=stop,
-                          live=False if args.plain else None)
+                          live=False if args.plain else None, zenoh_config=args.zenoh_config)
     finally:
         restore_signals()
     print(summary(result, spec.ids))
