@@ -11,6 +11,14 @@ object with a numeric ``t``, else the receive time. Rigs publish their config on
 start, so at its start the recorder asks the running ones for theirs (``<ns>/rig/*/config``,
 which the sim node answers), as the monitor does, and records the replies.
 
+Nothing on the bus stops the recorder: a payload that is not JSON is counted and skipped (a
+JSON one is recorded as received on its key, valid or not: a replay shows what the monitor was
+sent), a time ``t`` that is not a plausible time stamp is not used as one (:func:`publish_time_ns`),
+a payload over ``max_payload_bytes`` is counted and skipped, and an error in handling one
+message is counted and logged, never fatal. A disk that fills up is met before it is full
+(:class:`Rotation`): the open file is closed complete, what arrives is counted, not written,
+and writing resumes in a new file once there is room again.
+
 File names never contain a rig id: ``out`` is either a ``.mcap`` path, whose parts after
 the first get ``-1``, ``-2``... before the suffix, or a directory, where parts are named
 ``<namespace>-<UTC time>.mcap`` (``/`` in the namespace becomes ``_``).
@@ -20,7 +28,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import threading
 import time
 from collections.abc import Callable
@@ -28,18 +35,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import zenoh
-from pydantic import ValidationError
 
+from hydromon.bus.rotation import DISK_FULL as _DISK_FULL
+from hydromon.bus.rotation import Rotation, names_a_directory, space_needed
 from hydromon.bus.session import loads
-from hydromon.contract import DEFAULT_NAMESPACE, RigConfig, check_namespace
-from hydromon.store.mcap_write import RecordingWriter
-from hydromon.store.mcap_layout import rig_topic
+from hydromon.contract import DEFAULT_NAMESPACE, check_namespace
 
-__all__ = ["record", "RecordResult", "publish_time_ns", "Rotation", "names_a_directory", "steady_wall_clock"]
+__all__ = ["record", "RecordResult", "publish_time_ns", "Rotation", "names_a_directory", "steady_wall_clock",
+           "MAX_PAYLOAD_BYTES", "space_needed"]
 
 log = logging.getLogger(__name__)
 _BATCH = 1000  # messages drained between timer checks
 _WARN_KEYS = 20  # keys whose non-JSON payloads are logged (one line each); the rest are counted
+_WARN_OTHER = 20  # oversized payloads, and messages whose handling failed, logged; the rest are counted
+MAX_PAYLOAD_BYTES = 1_000_000
+"""Payloads larger than this [B] are counted and skipped (a contract payload is under 2 kB)."""
 
 
 def steady_wall_clock(wall_ns: Callable[[], int] = time.time_ns,
@@ -109,135 +119,28 @@ class RecordResult:
     files: list[Path] = field(default_factory=list)
     messages: int = 0
     not_json: int = 0
+    too_large: int = 0  # payloads over max_payload_bytes, skipped
+    failed: int = 0  # messages whose handling raised (logged), skipped
+    unwritten: int = 0  # messages received while the disk was full
+    disk_full: int = 0  # times writing stopped for a full disk
+
+
+_T_MAX_S = (2**64 - 1) / 1e9  # the last second an MCAP time stamp (uint64 ns) holds
 
 
 def publish_time_ns(obj, receive_time_ns: int) -> int:
-    """``t`` [s] of a decoded payload as integer ns, or ``receive_time_ns`` if it has none."""
+    """``t`` [s] of a decoded payload as integer ns, or ``receive_time_ns`` if it has none or it
+    is not a time an MCAP record can hold: not a number (a string such as ``"nan"``, a bool),
+    not finite, negative, or past 2**64 ns (``1e300``, a huge integer)."""
     t = obj.get("t") if isinstance(obj, dict) else None
-    if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t):
-        ns = round(t * 1e9)
-        if 0 <= ns < 2**64:
-            return ns
-    return receive_time_ns
-
-
-def _valid_config(payload: bytes) -> bool:
-    """A config payload the monitor would take (a valid RigConfig; its sample rate is not known here)."""
-    try:
-        RigConfig.model_validate_json(payload)
-    except ValidationError:
-        return False
-    return True
-
-
-def names_a_directory(out) -> bool:
-    """``out`` (a path) is a directory for time-stamped files: it is one, or ends with a ``/``;
-    anything else names the file (``.mcap`` added if missing), whose directory is created."""
-    out_s = os.fspath(out)
-    return out_s.endswith(("/", os.sep)) or os.path.isdir(out_s)
-
-
-class Rotation:
-    """The open MCAP file and its successors.
-
-    Parameters
-    ----------
-    out : str or Path
-        A ``.mcap`` file path, or a directory (existing, or given with a trailing ``/``).
-    namespace : str
-        Used in file names when ``out`` is a directory.
-    rotate_bytes : int or None
-        Start a new file once the current one reaches this size [B].
-    rotate_ns : int or None
-        Start a new file once the current one spans this much log time [ns] (from its
-        first message, so a quiet bus makes no empty files).
-    writer_kwargs : dict
-        Passed to :class:`~hydromon.store.mcap_write.RecordingWriter`.
-    on_file : callable or None
-        Called with each new file's path.
-
-    A file that is due is closed at once (complete, readable); its successor is opened by
-    the next message, so a bus that goes quiet leaves no empty part behind.
-    """
-
-    def __init__(self, out, namespace: str, rotate_bytes: int | None, rotate_ns: int | None,
-                 writer_kwargs: dict, on_file: Callable[[Path], None] | None, now_ns: int):
-        for name, v in (("rotate_bytes", rotate_bytes), ("rotate_ns", rotate_ns)):
-            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v <= 0):
-                raise ValueError(f"{name}={v!r} must be a positive integer or None")
-        out_s = os.fspath(out)
-        if names_a_directory(out_s):
-            stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime(now_ns / 1e9))
-            self._base = Path(out_s) / f"{namespace.replace('/', '_')}-{stamp}"
-        else:
-            path = Path(out_s)
-            self._base = path.with_suffix("") if path.suffix == ".mcap" else path
-        self._base.parent.mkdir(parents=True, exist_ok=True)
-        self.rotate_bytes, self.rotate_ns = rotate_bytes, rotate_ns
-        self._kwargs, self._on_file = writer_kwargs, on_file
-        self.files: list[Path] = []
-        self._configs: dict[str, bytes] = {}
-        self._file = self.writer = None
-        self._first_ns: int | None = None
-        self._open()
-
-    def _open(self) -> None:
-        part = len(self.files)
-        while True:
-            path = self._base.with_name(self._base.name + (f"-{part}" if part else "") + ".mcap")
-            try:
-                f = open(path, "xb")
-                break
-            except FileExistsError:
-                if not self.files:
-                    raise ValueError(f"{path} exists; refusing to overwrite a recording") from None
-                part += 1
-        self._file, self._first_ns = f, None
-        self.writer = RecordingWriter(f, **self._kwargs)
-        self.files.append(path)
-        if self._on_file:
-            self._on_file(path)
-
-    def write(self, key: str, payload: bytes, log_time_ns: int, publish_time_ns: int) -> None:
-        if self.writer is None:  # the last part was closed when due: this message starts the next
-            self._open()
-            # every part carries the rigs' configs, as messages ahead of its first one (and so as
-            # metadata too): a replay or evaluation of this part alone grades with the rigs' constants,
-            # and sees where they were in force from, as the live monitor did
-            for ckey, cpayload in self._configs.items():
-                if ckey != key:
-                    self.writer.write(ckey, cpayload, log_time_ns, log_time_ns)
-        self.writer.write(key, payload, log_time_ns, publish_time_ns)
-        if self._first_ns is None:
-            self._first_ns = log_time_ns
-        parsed = rig_topic(key)
-        if parsed is not None and parsed[1] == "config" and _valid_config(payload):
-            self._configs[key] = payload  # carried into the next parts (an invalid one the monitor rejects: not)
-
-    @property
-    def recorded_configs(self) -> dict[str, bytes]:
-        """The last valid config recorded on each config key (what each new part starts with)."""
-        return self._configs
-
-    def tick(self, now_ns: int) -> None:
-        """Flush the open chunk if due; close the file if it is big or old enough (the next
-        message opens the next one)."""
-        if self.writer is None:
-            return
-        self.writer.flush_if_due(now_ns)
-        if self._first_ns is None:
-            return
-        if (self.rotate_bytes is not None and self._file.tell() >= self.rotate_bytes) or \
-                (self.rotate_ns is not None and now_ns - self._first_ns >= self.rotate_ns):
-            self.close()
-            self._file = self.writer = None
-
-    def close(self) -> None:
-        if self._file is not None and not self._file.closed:
-            try:
-                self.writer.close()
-            finally:
-                self._file.close()
+    if isinstance(t, bool) or not isinstance(t, (int, float)):
+        return receive_time_ns
+    if isinstance(t, float) and not math.isfinite(t):
+        return receive_time_ns
+    if not 0 <= t < _T_MAX_S:  # compared before scaling: 1e300 * 1e9 is inf, a huge int no float
+        return receive_time_ns
+    ns = t * 1_000_000_000 if isinstance(t, int) else round(t * 1e9)  # an integer exactly
+    return ns if 0 <= ns < 2**64 else receive_time_ns
 
 
 def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
@@ -247,7 +150,10 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
            capacity: int = 65536, poll_s: float = 0.005,
            on_file: Callable[[Path], None] | None = None,
            on_message: Callable[[str], None] | None = None,
-           clock: Callable[[], int] | None = None, config_query_s: float = 5.0) -> RecordResult:
+           on_skip: Callable[[str, str], None] | None = None,
+           clock: Callable[[], int] | None = None, config_query_s: float = 5.0,
+           max_payload_bytes: int = MAX_PAYLOAD_BYTES, low_space_bytes: int | None = None,
+           free_bytes: Callable[[Path], int] | None = None) -> RecordResult:
     """Record ``<namespace>/**`` from ``session`` until ``stop_event`` is set or ``duration_s``.
 
     Parameters
@@ -273,6 +179,9 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
         Called with the path of each file as it is opened.
     on_message : callable or None
         Called with the key of each message once it is handed to the writer (progress).
+    on_skip : callable or None
+        Called with the key and the reason (``not-json``, ``too-large``, ``unwritten``: the disk
+        was full, ``failed``) of each message not recorded.
     clock : callable or None
         Receive time source [ns since the Unix epoch] (None: :func:`steady_wall_clock`).
     config_query_s : float
@@ -280,12 +189,21 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
         their configs [s] (a rig publishes its config once at its start: a recorder started
         after it would otherwise record none, and the recording would be graded with the
         default constants).
+    max_payload_bytes : int
+        Larger payloads are counted (``too_large``) and skipped [B].
+    low_space_bytes : int or None
+        Stop writing below this much free space [B] (:class:`Rotation`; None:
+        :func:`space_needed` of ``chunk_size`` and ``max_payload_bytes``).
+    free_bytes : callable or None
+        ``free_bytes(directory)`` [B], for :class:`Rotation`.
     """
     check_namespace(namespace)
     if rotate_seconds is not None and not (isinstance(rotate_seconds, (int, float)) and rotate_seconds > 0):
         raise ValueError(f"rotate_seconds={rotate_seconds!r} must be > 0 [s]")
     if duration_s is not None and not (isinstance(duration_s, (int, float)) and duration_s >= 0):
         raise ValueError(f"duration_s={duration_s!r} must be >= 0 [s]")
+    if isinstance(max_payload_bytes, bool) or not isinstance(max_payload_bytes, int) or max_payload_bytes <= 0:
+        raise ValueError(f"max_payload_bytes={max_payload_bytes!r} must be a positive integer [B]")
     stop = stop_event if stop_event is not None else threading.Event()
     clock = clock or steady_wall_clock()
     start = clock()
@@ -293,19 +211,47 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
     rotation = Rotation(out, namespace, rotate_bytes,
                         None if rotate_seconds is None else round(rotate_seconds * 1e9),
                         {"chunk_size": chunk_size, "flush_interval_ns": flush_interval_ns},
-                        on_file, start)
+                        on_file, start, space_needed(chunk_size, max_payload_bytes) if low_space_bytes is None
+                        else low_space_bytes, free_bytes)
     result = RecordResult(files=rotation.files)
     warned: set[str] = set()
     query = _ConfigQuery(session, namespace, config_query_s)
 
     def handle(sample) -> None:
+        key = "?"
+        try:
+            key = str(sample.key_expr)
+            record_one(key, sample.payload)
+        except Exception as exc:  # noqa: BLE001 (one message must not end the recording)
+            if isinstance(exc, OSError) and exc.errno not in _DISK_FULL:
+                raise  # the file system refuses (permissions, I/O errors): the command says so
+            result.failed += 1
+            if on_skip is not None:
+                on_skip(key, "failed")
+            if result.failed <= _WARN_OTHER:
+                more = "" if result.failed < _WARN_OTHER else " (further ones are counted, not logged)"
+                log.warning("recorder: could not record a message on %s, skipped: %s: %s%s", key[:200],
+                            type(exc).__name__, str(exc)[:200], more)
+
+    def record_one(key: str, zbytes) -> None:
         now = clock()
-        key = str(sample.key_expr)
-        payload = sample.payload.to_bytes()
+        size = len(zbytes)
+        if size > max_payload_bytes:
+            result.too_large += 1
+            if on_skip is not None:
+                on_skip(key, "too-large")
+            if result.too_large <= _WARN_OTHER:
+                more = "" if result.too_large < _WARN_OTHER else " (further ones are counted, not logged)"
+                log.warning("recorder: not recording a payload of %d B on %s (over --max-payload-mb, %d B)%s",
+                            size, key[:200], max_payload_bytes, more)
+            return
+        payload = zbytes.to_bytes()
         try:
             obj = loads(payload)
         except ValueError:
             result.not_json += 1
+            if on_skip is not None:
+                on_skip(key, "not-json")
             # bounded: a burst of distinct bogus keys must not flood the log (50,000 keys gave
             # 50,000 lines) nor grow this set without end; the exit summary has the count
             if key not in warned and len(warned) <= _WARN_KEYS:
@@ -315,8 +261,12 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
                 else:
                     log.warning("not recording non-JSON payloads on more keys: counted, not logged")
             return
-        rotation.write(key, payload, now, publish_time_ns(obj, now))
+        written = rotation.write(key, payload, now, publish_time_ns(obj, now))
         query.saw(key)
+        if not written:
+            if on_skip is not None:
+                on_skip(key, "unwritten")
+            return
         result.messages += 1
         if on_message is not None:
             on_message(key)
@@ -342,5 +292,8 @@ def record(session: zenoh.Session, out, *, namespace: str = DEFAULT_NAMESPACE,
             except zenoh.ZError as exc:  # the session was closed under us: end the recording
                 log.warning("recorder stopping: %s", exc)
     finally:
-        rotation.close()
+        try:
+            rotation.close()
+        finally:
+            result.unwritten, result.disk_full = rotation.unwritten, rotation.disk_full
     return result

@@ -57,6 +57,7 @@ class RecordingWriter:
         self._configs: dict[str, bytes] = {}
         self._chunk_first_ns: int | None = None
         self._closed = False
+        self.durable_offset = 0  # stream offset up to which every record is written out (flushed)
         self.message_count = 0
         self.invalid_configs = 0
 
@@ -147,6 +148,7 @@ class RecordingWriter:
         if not self._closed:
             self._writer.flush()
             self._chunk_first_ns = None
+            self._note_durable()
 
     def close(self) -> None:
         """Write the last chunk and the summary (indexes, statistics). The stream stays open."""
@@ -154,6 +156,13 @@ class RecordingWriter:
             self._writer.finish()
             self._writer.flush()  # flushes the stream, also a BufferedWriter mcap wrapped around it
             self._closed = True
+            self._note_durable()
+
+    def _note_durable(self) -> None:
+        try:
+            self.durable_offset = self._stream.tell()
+        except (OSError, ValueError, AttributeError):  # a stream that cannot tell
+            pass
 
     @property
     def closed(self) -> bool:
