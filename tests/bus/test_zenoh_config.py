@@ -148,7 +148,11 @@ def test_a_node_logs_losing_its_router_and_reconnecting_with_how_long_it_was_cut
             down_s = 2.0
             time.sleep(down_s)
             router = _router(ep, rlog)
+            wait_for(lambda: router_log.read_text().count("listening on") == 2, 30, "the router again", poll_s=0.01)
+            up = time.monotonic()
             back = _wait_line(node_log, _BACK, 20, "the line saying it reconnected", node)
+            print(f"router down {down_s:g} s (plus its start): the node logged 'reconnected' "
+                  f"{time.monotonic() - up:.2f} s after the router listened again, cut off {back[1]} s")
             assert back[0] != first  # a restarted router is another zenoh node
             assert down_s <= float(back[1]) < down_s + 10
             text = node_log.read_text()
