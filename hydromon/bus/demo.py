@@ -28,6 +28,7 @@ import zenoh
 
 from contextlib import contextmanager
 
+from hydromon.bus.connectivity import ConnectivityLog
 from hydromon.bus.session import listening_session, make_config, open_session, summarize_config
 from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, parse_rig_key
 from hydromon.store.fleetfile import FleetSpec, default_fleet, true_grade
@@ -66,6 +67,18 @@ def _recording_path(out_dir: Path) -> Path:
 
 @contextmanager
 def _demo_session(zenoh_config=None):
+    """:func:`_open_demo_session`, with the log of being cut off from the other nodes
+    (:class:`~hydromon.bus.connectivity.ConnectivityLog`), stopped before the session closes."""
+    with _open_demo_session(zenoh_config) as (session, endpoint):
+        connectivity = ConnectivityLog(session, "demo")
+        try:
+            yield session, endpoint
+        finally:
+            connectivity.close()
+
+
+@contextmanager
+def _open_demo_session(zenoh_config=None):
     """``(session, endpoint)``: the demo's embedded session and where other nodes reach it. A peer
     on a free loopback port; with a zenoh configuration file, the file's session, on the file's
     listen (or connect) endpoints if it names some, else on a free loopback port too."""

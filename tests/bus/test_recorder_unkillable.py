@@ -63,6 +63,15 @@ def test_no_payload_on_any_key_stops_the_recorder_and_no_valid_message_is_lost(t
             messages.append((sample_key(RIG), sample_bytes(seq, seq * 0.01)))
             seq += 1
             messages.append((key, payload))
+    # the bus node's catalogue too: bad configs on a config key, good samples under bad rig ids and on
+    # keys outside the contract
+    from test_bad_input_bus import BAD_CONFIGS, BAD_RIG_IDS, OUTSIDE
+
+    for _, payload in BAD_CONFIGS:
+        messages.append(("hydro/rig/r1/config", payload))
+    outside = [k for k in OUTSIDE if k.startswith("hydro/") and "@" not in k]  # ** never matches a verbatim @ chunk
+    for key in [f"hydro/rig/{r}/sample" for r in BAD_RIG_IDS] + outside:
+        messages.append((key, sample_bytes(0, 0.0)))
     for key in (sample_key(RIG), "hydro/blob", "hydro/rig/r1/health"):  # 10 MB on a sample key and elsewhere
         messages.append((key, b'{"t": 1.0, "pad": "' + b"x" * (BIG - 21) + b'"}'))
         messages.append((sample_key(RIG), sample_bytes(seq, seq * 0.01)))
@@ -99,7 +108,8 @@ def test_no_payload_on_any_key_stops_the_recorder_and_no_valid_message_is_lost(t
     assert res.messages == len(kept)
     # every good sample: none lost among the junk (which a reader skips, as the monitor rejects it)
     good = {sample_bytes(i, i * 0.01) for i in range(seq)}
-    assert [p for k, p, _, _ in recorded if p in good] == [sample_bytes(i, i * 0.01) for i in range(seq)]
+    assert [p for k, p, _, _ in recorded if p in good and k == sample_key(RIG)] == \
+        [sample_bytes(i, i * 0.01) for i in range(seq)]
     rejected = []
     _, _, seqs = read_samples(out, RIG, rejected=rejected)
     assert [s for s in seqs.tolist() if s != 1 or seqs.tolist().count(1) == 1] == list(range(seq)) or \

@@ -166,3 +166,24 @@ def test_a_node_logs_losing_its_router_and_reconnecting_with_how_long_it_was_cut
                 if p is not None and p.poll() is None:
                     p.kill()
                     p.wait(10)
+
+
+@pytest.mark.network
+def test_the_demos_session_takes_the_file_and_listens_where_it_says_else_on_a_free_loopback_port(tmp_path):
+    from hydromon.bus.demo import _demo_session
+
+    plain = _file(tmp_path, "{ queries_default_timeout: 1234 }")
+    with _demo_session(plain) as (session, endpoint):
+        assert endpoint.startswith("tcp/127.0.0.1:") and not session.is_closed()
+        with open_session_to(endpoint) as other:
+            wait_for(lambda: list(other.info.peers_zid()), 10, "the demo's session")
+    ep = free_tcp_endpoint()
+    listening = _file(tmp_path, f'{{ listen: {{ endpoints: ["{ep}"] }} }}', "listen.json5")
+    with _demo_session(listening) as (session, endpoint):
+        assert endpoint == ep
+
+
+def open_session_to(endpoint):
+    from hydromon.bus.session import open_session
+
+    return open_session("peer", connect=[endpoint])
