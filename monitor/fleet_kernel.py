@@ -42,20 +42,23 @@ class FleetRows(NamedTuple):
     phase: np.ndarray
     """(n_rows,) int64 evaluation phase: a rig is evaluated where count + phase is a multiple of eval_every."""
     bands: np.ndarray
-    """(n_rows, n_graded) int64 grading hysteresis state, the band each graded parameter is held in."""
+    """(n_rows, G) int64 grading hysteresis state, the band each graded parameter is held in."""
 
 
 class Grading(NamedTuple):
-    """How a rig is graded (``monitor.grading.grade_kernel``)."""
+    """How each rig is graded (``monitor.grading.grade_kernel``): row r's ranges in row r, its
+    graded parameters in the first ``count[r]`` slots (none: the rig is not graded)."""
 
+    count: np.ndarray
+    """(n_rows,) int64 the rig's graded parameters (0: no ranges made for it)."""
     index: np.ndarray
-    """(n_graded,) int64 the graded parameters' indices in PARAM_NAMES."""
+    """(n_rows, G) int64 the graded parameters' indices in PARAM_NAMES."""
     sign: np.ndarray
-    """(n_graded,) +-1: the direction in which each parameter degrades."""
+    """(n_rows, G) +-1: the direction in which each parameter degrades."""
     edges: np.ndarray
-    """(n_graded, 4) float64 band edges [SI unit of each parameter]."""
+    """(n_rows, G, 4) float64 band edges [SI unit of each parameter]."""
     margins: np.ndarray
-    """(n_graded, 4) float64 hysteresis margins [SI unit of each parameter]."""
+    """(n_rows, G, 4) float64 hysteresis margins [SI unit of each parameter]."""
     z: float
     """The SE gate's half-width [standard errors]."""
     min_rows: float
@@ -138,9 +141,10 @@ def _evaluate(fleet, model, grading, events, r, i, slot, out):
     bad = any_impossible(p, s)
     # impossible estimates are not graded, and leave the hysteresis state as it was
     out.converged[0] = converged and not bad
-    level, grades, confidence = grade_kernel(out.params, out.std_errors, out.converged, grading.index,
-                                             grading.sign, grading.edges, grading.margins, grading.z,
-                                             fleet.bands[r:r + 1])
+    n = grading.count[r]
+    level, grades, confidence = grade_kernel(out.params, out.std_errors, out.converged, grading.index[r, :n],
+                                             grading.sign[r, :n], grading.edges[r, :n], grading.margins[r, :n],
+                                             grading.z, fleet.bands[r:r + 1, :n])
     events.rig[slot] = r
     events.sample[slot] = i
     events.counts[slot] = fleet.counts[r]
@@ -148,7 +152,8 @@ def _evaluate(fleet, model, grading, events, r, i, slot, out):
     events.confidence[slot] = confidence[0]
     events.params[slot] = p
     events.std_errors[slot] = s
-    events.grades[slot] = grades[0]
+    events.grades[slot, :n] = grades[0]
+    events.grades[slot, n:] = -1
     events.converged[slot] = converged
     events.clamped[slot] = fleet.states[r, O_CLAMPED]  # samples whose x1 emptied a chamber, so far
     events.implausible[slot] = bad
@@ -191,7 +196,7 @@ def _run(order, lo, hi, fleet, model, grading, eval_every, arrivals, events, slo
 def run_part(order, lo, hi, slot,
              states, consts, counts, phase, bands,  # FleetRows
              hyper, m_f, m_c, m_o, g_f, g_c,  # IdentModel
-             index, sign, edges, margins, z, min_rows,  # Grading
+             g_count, index, sign, edges, margins, z, min_rows,  # Grading
              eval_every, rig, samples,  # the schedule and the Arrivals
              ev_rig, ev_sample, ev_counts, ev_level, ev_confidence, ev_params, ev_std_errors, ev_grades,
              ev_converged, ev_clamped, ev_implausible):  # EventArrays
@@ -199,7 +204,7 @@ def run_part(order, lo, hi, slot,
     the rigs' evaluations; events from ``slot`` on. Returns the next free slot. The arguments
     after ``slot`` are ``pipeline_step``'s."""
     return _run(order, lo, hi, FleetRows(states, consts, counts, phase, bands),
-                IdentModel(hyper, m_f, m_c, m_o, g_f, g_c), Grading(index, sign, edges, margins, z, min_rows),
+                IdentModel(hyper, m_f, m_c, m_o, g_f, g_c), Grading(g_count, index, sign, edges, margins, z, min_rows),
                 eval_every, Arrivals(rig, samples),
                 EventArrays(ev_rig, ev_sample, ev_counts, ev_level, ev_confidence, ev_params, ev_std_errors,
                             ev_grades, ev_converged, ev_clamped, ev_implausible), slot)
@@ -208,7 +213,7 @@ def run_part(order, lo, hi, slot,
 @njit(cache=True, error_model="numpy")
 def pipeline_step(states, consts, counts, phase, bands,  # FleetRows
                   hyper, m_f, m_c, m_o, g_f, g_c,  # IdentModel
-                  index, sign, edges, margins, z, min_rows,  # Grading
+                  g_count, index, sign, edges, margins, z, min_rows,  # Grading
                   eval_every, rig, samples,  # the schedule and the Arrivals
                   ev_rig, ev_sample, ev_counts, ev_level, ev_confidence, ev_params, ev_std_errors, ev_grades,
                   ev_converged, ev_clamped, ev_implausible):  # EventArrays
@@ -217,7 +222,7 @@ def pipeline_step(states, consts, counts, phase, bands,  # FleetRows
     depend on how arrivals were batched). Returns the number of events written into the event
     arrays (sized by the caller to len(samples) // eval_every + number of rigs)."""
     return _run(np.arange(rig.shape[0]), 0, rig.shape[0], FleetRows(states, consts, counts, phase, bands),
-                IdentModel(hyper, m_f, m_c, m_o, g_f, g_c), Grading(index, sign, edges, margins, z, min_rows),
+                IdentModel(hyper, m_f, m_c, m_o, g_f, g_c), Grading(g_count, index, sign, edges, margins, z, min_rows),
                 eval_every, Arrivals(rig, samples),
                 EventArrays(ev_rig, ev_sample, ev_counts, ev_level, ev_confidence, ev_params, ev_std_errors,
                             ev_grades, ev_converged, ev_clamped, ev_implausible), 0)

@@ -132,7 +132,10 @@ class Fleet:
     options : IdentOptions
         Identifier hyperparameters (shared).
     ranges : Ranges
-        Health ranges (default: ``Ranges.default()``, Table 3 with the valve on K_sv).
+        The default health ranges (``Ranges.default()`` when None): a rig added with constants
+        they were made for is graded on them (``Ranges.made_for``); any other rig is not graded
+        until :meth:`set_ranges` gives it ranges of its own (its grade stays unknown, its
+        parameters are still estimated).
     sample_rate : float
         Sample rate of every rig [Hz].
     eval_every : int
@@ -168,7 +171,6 @@ class Fleet:
         self.grade_z = float(grade_z)
         self.grade_margin = float(grade_margin)
         self._k = Kernels(self.options, 1.0 / self.sample_rate)
-        self._ra = self.ranges.to_arrays(grade_margin)
         self.ids: list[str] = []  # by row; "" for a row freed by remove_rig (no valid rig id is empty)
         self.index: dict[str, int] = {}
         self._free: list[int] = []  # rows freed by remove_rig, reused lowest first (a heap)
@@ -177,7 +179,16 @@ class Fleet:
         self.consts = np.zeros((capacity, RIG_CONST_SIZE))
         self.counts = np.zeros(capacity, dtype=np.int64)
         self.phase = np.zeros(capacity, dtype=np.int64)
-        self.bands = np.full((capacity, len(self._ra.index)), -1, dtype=np.int64)
+        g = N_P  # graded slots per rig: any ranges fit
+        self.bands = np.full((capacity, g), -1, dtype=np.int64)
+        self.g_count = np.zeros(capacity, dtype=np.int64)
+        self.g_index = np.zeros((capacity, g), dtype=np.int64)
+        self.g_sign = np.ones((capacity, g))
+        self.g_edges = np.zeros((capacity, g, 4))
+        self.g_margins = np.zeros((capacity, g, 4))
+        self._names: list[tuple] = []      # by row: the graded parameters' names
+        self._tags: list[str | None] = []  # by row: the tag of the ranges it is graded on
+        self.why: list[str | None] = []    # by row: why no ranges grade it (None: some do)
         self._ev_cap = 0
         self._alloc_events(16)
         self._no_events = Events.of_kernel([v[:0].copy() for v in self._ev])
@@ -185,22 +196,42 @@ class Fleet:
 
     def _bind(self) -> None:
         """The kernels' fixed arguments (rebuilt when the per-rig arrays are reallocated)."""
-        ra = self._ra
         self._rows = FleetRows(self.states, self.consts, self.counts, self.phase, self.bands)
         self._model = IdentModel.of(self._k)
-        self._grading = Grading(ra.index, ra.sign, ra.edges, ra.margins, self.grade_z, float(self.options.min_rows))
+        self._grading = Grading(self.g_count, self.g_index, self.g_sign, self.g_edges, self.g_margins, self.grade_z,
+                                float(self.options.min_rows))
         # pipeline_step's and run_part's: the records' fields, in their order
         self._fields = (*self._rows, *self._model, *self._grading, self.eval_every)
 
-    @property
-    def graded(self) -> tuple:
-        return self._ra.names
+    def graded(self, rig: int) -> tuple:
+        """The names of the parameters rig ``rig`` (a row) is graded on (empty: not graded)."""
+        return self._names[rig]
+
+    def ranges_tag(self, rig: int) -> str | None:
+        """The tag of the ranges rig ``rig`` is graded on (None: not graded)."""
+        return self._tags[rig]
+
+    def set_ranges(self, rig: int, ranges: Ranges | None, tag: str | None = None, why: str | None = None) -> None:
+        """Grade rig ``rig`` (a row) on ``ranges`` from its next evaluation on (its hysteresis
+        restarts); None: do not grade it (``why`` says why). ``tag`` names the ranges."""
+        self.bands[rig] = -1
+        if ranges is None:
+            self.g_count[rig] = 0
+            self._names[rig], self._tags[rig], self.why[rig] = (), None, why
+            return
+        ra = ranges.to_arrays(self.grade_margin)
+        n = len(ra.index)
+        self.g_count[rig] = n
+        self.g_index[rig, :n], self.g_sign[rig, :n] = ra.index, ra.sign
+        self.g_edges[rig, :n], self.g_margins[rig, :n] = ra.edges, ra.margins
+        self._names[rig], self._tags[rig], self.why[rig] = ra.names, tag, None
 
     def __len__(self) -> int:
         return len(self.ids)
 
     def add_rig(self, rig_id: str, config: RigConfig | None = None) -> int:
-        """Register a rig (its constants from ``config``); returns its row index."""
+        """Register a rig (its constants from ``config``); returns its row index. It is graded on
+        the default ranges when they were made for its constants, else not (:meth:`set_ranges`)."""
         if rig_id in self.index:
             raise ValueError(f"rig {rig_id!r} already in the fleet")
         config = config or RigConfig()
@@ -214,13 +245,24 @@ class Fleet:
             if i == self.states.shape[0]:
                 self._grow()
             self.ids.append(rig_id)
+            self._names.append(())
+            self._tags.append(None)
+            self.why.append(None)
         self.index[rig_id] = i
         self.states[i] = new_state(self._k.hyper)
         self.consts[i] = rig_constants(config)
         self.counts[i] = 0
         self.phase[i] = eval_phase(rig_id, self.eval_every) if self.stagger else 0
-        self.bands[i] = -1
+        self.apply_default_ranges(i, config)
         return i
+
+    def apply_default_ranges(self, rig: int, config: RigConfig | None) -> None:
+        """Grade rig ``rig`` on the default ranges if they were made for ``config``, else not."""
+        why = self.ranges.made_for(config)
+        if why is None:
+            self.set_ranges(rig, self.ranges, "default")
+        else:
+            self.set_ranges(rig, None, why=why)
 
     def remove_rig(self, rig_id: str) -> int:
         """Forget a rig: its row is freed (its state cleared) for the next :meth:`add_rig`, so a
@@ -229,7 +271,7 @@ class Fleet:
         self.ids[i] = ""
         self.states[i] = 0.0
         self.counts[i] = 0
-        self.bands[i] = -1
+        self.set_ranges(i, None)
         heapq.heappush(self._free, i)
         return i
 
@@ -240,10 +282,17 @@ class Fleet:
         self.counts = np.concatenate([self.counts, np.zeros_like(self.counts)])[:n]
         self.phase = np.concatenate([self.phase, np.zeros_like(self.phase)])[:n]
         self.bands = np.vstack([self.bands, np.full_like(self.bands, -1)])[:n]
+        self.g_count = np.concatenate([self.g_count, np.zeros_like(self.g_count)])[:n]
+        self.g_index = np.concatenate([self.g_index, np.zeros_like(self.g_index)])[:n]
+        self.g_sign = np.concatenate([self.g_sign, np.ones_like(self.g_sign)])[:n]
+        self.g_edges = np.concatenate([self.g_edges, np.zeros_like(self.g_edges)])[:n]
+        self.g_margins = np.concatenate([self.g_margins, np.zeros_like(self.g_margins)])[:n]
         self._bind()
 
     def set_config(self, rig: int, config: RigConfig) -> None:
-        """New rig constants; the estimates restart (they were identified against the old ones)."""
+        """New rig constants; the estimates restart (they were identified against the old ones).
+        The caller decides again which ranges grade the rig (:meth:`set_ranges`,
+        :meth:`apply_default_ranges`): ranges made for the old constants do not fit the new."""
         self.consts[rig] = rig_constants(config)
         self.reset(rig)
 
@@ -311,7 +360,7 @@ class Fleet:
     def _alloc_events(self, cap: int) -> None:
         # reused between calls: a sample's call allocates nothing until it has events to return
         cap = max(cap, 2 * self._ev_cap)
-        ng = len(self._ra.index)
+        ng = N_P
         self._ev = EventArrays(
             rig=np.empty(cap, np.int64), sample=np.empty(cap, np.int64), counts=np.empty(cap, np.int64),
             level=np.empty(cap, np.int64), confidence=np.empty(cap), params=np.empty((cap, N_P)),
@@ -341,11 +390,13 @@ class Fleet:
         g = self._grading
         conv = np.array([assess_rig(self.states[rig], self._model, g.min_rows, p[0], s[0])])
         bad = np.array([any_impossible(p[0], s[0])])
-        band = self.bands[rig:rig + 1].copy()
-        level, grades, conf = grade_kernel(p, s, conv & ~bad, g.index, g.sign, g.edges, g.margins, g.z, band)
+        n = int(g.count[rig])
+        band = self.bands[rig:rig + 1, :n].copy()
+        level, grades, conf = grade_kernel(p, s, conv & ~bad, g.index[rig, :n], g.sign[rig, :n], g.edges[rig, :n],
+                                           g.margins[rig, :n], g.z, band)
         one = Events.of_kernel([np.array([rig]), np.array([-1]), self.counts[rig:rig + 1].copy(), level, conf, p, s,
                                 grades, conv, np.array([self.x1_clamped(rig)]), bad])
-        return one.assessment(0, self._ra.names)
+        return one.assessment(0, self._names[rig])
 
 
 class Pipeline:
@@ -366,7 +417,7 @@ class Pipeline:
         if not np.all(np.isfinite(s)):
             raise ValueError(f"non-finite sample {s[0].tolist()}")
         ev = self.fleet.update(np.zeros(1, np.int64), s)
-        return ev.assessment(0, self.fleet.graded) if len(ev) else None
+        return ev.assessment(0, self.fleet.graded(0)) if len(ev) else None
 
     def run(self, samples: np.ndarray, restarts=()) -> tuple[Events, Assessment]:
         """Consume a record; ``restarts`` are the indices of samples that follow a gap (the

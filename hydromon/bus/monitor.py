@@ -24,9 +24,10 @@ import zenoh
 
 from hydromon.bus.quietgc import QuietGC
 from hydromon.bus.session import JSON
-from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, health_key, liveliness_key, sample_key
+from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, health_key, liveliness_key, ranges_key, sample_key
 from hydromon.engine.core import MonitorCore
 from hydromon.engine.watches import BacklogWatch, RateLimitedLog, SilenceWatch
+from hydromon.store.ranges_dir import RangesDir
 from monitor.pipeline import warm_up
 
 __all__ = ["RigKeys", "log_rig_warning", "run_monitor", "rig_pattern"]
@@ -140,7 +141,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
                 config_query_s: float = 5.0, clock=time.monotonic, rigs: str = "*",
                 stale_after_s: float | None = 2.0, forget_after_s: float | None = None,
-                behind_after_s: float = 2.0) -> MonitorCore:
+                behind_after_s: float = 2.0, ranges_dir: RangesDir | None = None,
+                ranges_scan_s: float = 2.0) -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
 
     Parameters
@@ -178,6 +180,11 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     behind_after_s : float
         Batches drained full for this long [s] are logged as the node falling behind its
         input, and the catch-up after (:class:`BacklogWatch`).
+    ranges_dir : RangesDir or None
+        A directory of per-rig ranges files (``<rig-id>.json``), scanned every ``ranges_scan_s``
+        [s]: a new or changed file grades its rig from then on (logged); a bad one is refused
+        (logged) and the rig keeps the ranges it had; a removed one leaves the rig to the
+        default ranges, if they were made for it.
 
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
@@ -200,6 +207,29 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             if qk.intersects(zenoh.KeyExpr(key)):
                 query.reply(key, payload, encoding=JSON)
 
+    def answer_ranges(query: zenoh.Query) -> None:
+        qk = query.key_expr
+        for rig_id in list(core.rigs):
+            key = ranges_key(rig_id, namespace)
+            if qk.intersects(zenoh.KeyExpr(key)):
+                ranges, _ = core.ranges_of(rig_id)
+                if ranges is not None:
+                    query.reply(key, ranges.model_dump_json(exclude_none=True), encoding=JSON)
+
+    def rescan_ranges() -> None:
+        for ch in ranges_dir.scan():
+            if ch.error is not None:
+                log.error("ranges for rig %s refused, the rig keeps the ranges it had: %s", ch.rig_id or "?", ch.error)
+            elif ch.removed:
+                core.verdicts.book.remove(ch.rig_id)
+                core.ranges_changed(ch.rig_id)
+                log.warning("rig %s: its ranges file %s is gone; the default ranges grade it if they were made "
+                            "for it", ch.rig_id, ch.path)
+            else:
+                core.verdicts.book.set(ch.rig_id, ch.ranges, ch.tag)
+                core.ranges_changed(ch.rig_id)
+                log.warning("rig %s: graded on %s from now on", ch.rig_id, ch.path)
+
     keys = RigKeys(session, namespace)
 
     def publish(items) -> None:
@@ -213,10 +243,17 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             if on_health is not None:
                 on_health(key, payload)
 
+    def publish_events() -> None:
+        for key, payload in core.take_events():
+            session.put(key, payload, encoding=JSON, congestion_control=zenoh.CongestionControl.BLOCK)
+
     rig_chunk = rig_pattern(rigs)
     sub_c = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/config", zenoh.handlers.FifoChannel(capacity))
     sub_s = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/sample", zenoh.handlers.FifoChannel(capacity))
     queryable = session.declare_queryable(f"{namespace}/rig/*/health", answer)
+    ranges_queryable = session.declare_queryable(f"{namespace}/rig/*/ranges", answer_ranges)
+    if ranges_dir is not None:
+        rescan_ranges()  # before the first sample: a rig is graded on its own ranges from its start
     # last: a peer that sees the token has seen the subscribers declared before it
     token = session.liveliness().declare_token(liveliness_key(node_name, namespace))
 
@@ -247,6 +284,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             out = core.process(batch)
             keys.sync(core)
             publish(out)
+            publish_events()
         return len(batch)
 
     def tell(line: str | None) -> None:
@@ -256,6 +294,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     quiet = QuietGC()
     quiet.__enter__()  # left in the finally below
     next_watch = clock()
+    next_scan = clock() + ranges_scan_s
     try:
         while True:
             started = time.perf_counter()
@@ -265,6 +304,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 now = clock()
                 if watch is not None:
                     publish(watch.check(core, now))
+                    publish_events()
                     forgotten = core.forget(watch.forget_due(core, now))
                     keys.forget(forgotten)
                     for rig_id in forgotten:
@@ -274,6 +314,9 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 if flush_log is not None:
                     flush_log()
                 next_watch = now + watch_every
+            if ranges_dir is not None and clock() >= next_scan:
+                rescan_ranges()
+                next_scan = clock() + ranges_scan_s
             if stop.is_set() or (deadline is not None and clock() >= deadline):
                 break
             if n < max_batch:
@@ -295,7 +338,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         keys.close()
         if flush_log is not None:
             flush_log(final=True)
-        for obj in (sub_s, sub_c, queryable, token):
+        for obj in (sub_s, sub_c, queryable, ranges_queryable, token):
             try:
                 obj.undeclare()
             except zenoh.ZError:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-RANGES_HELP = ('health ranges: "default" (the default: Table 3 with the valve on its static gain K_sv), '
-               '"paper" (Table 3 as printed: grades K_sv omega^2) or a JSON file (./paper for a file of that name)')
+RANGES_HELP = ('health ranges: "default" (the reference rig\'s: Table 3 with the valve on its static gain K_sv), '
+               '"paper" (Table 3 as printed: grades K_sv omega^2) or a ranges file (hydromon commission makes one for '
+               'your rig; ./paper for a file of that name). Ranges grade only rigs with the constants they were made '
+               'for; any other rig is reported ungraded (uncalibrated)')
 
 
 def add_ranges_argument(parser, help: str = RANGES_HELP) -> None:

@@ -39,9 +39,9 @@ from hydromon.contract import (
 from hydromon.engine.batch import RegularBatch
 from hydromon.engine.counters import MonitorCounters
 from hydromon.engine.validate import Rejected, decode_json, parse_config, parse_sample
-from hydromon.engine.health_json import health_payloads
 from hydromon.engine.sequence import DUPLICATE, GAP, OUT_OF_ORDER, RESTART, sequence_step
-from hydromon.engine.status import health_status
+from hydromon.engine.ranges_book import RangesBook
+from hydromon.engine.verdicts import Verdicts
 from monitor.drive import command_for_drive
 from monitor.pipeline import Fleet
 
@@ -105,6 +105,11 @@ class MonitorCore(RegularBatch):
         end (the rig constants or x1 are wrong, so its chamber parameters are not to be
         trusted); again if it does after a config change or a restart (seq back to 0)
         restarted the rig's estimates.
+    book : RangesBook or None
+        Which health ranges grade which rig (default: ``ranges`` of ``fleet_kw``, else the
+        default ranges, for the rigs they were made for; ``hydromon.engine.ranges_book``).
+    node, epoch : str, int or None
+        The monitor node's name and start count, written into every health and event (None: left out).
     **fleet_kw
         ``monitor.pipeline.Fleet`` hyperparameters (options, ranges, grade_z, grade_margin).
     """
@@ -114,7 +119,8 @@ class MonitorCore(RegularBatch):
     def __init__(self, namespace: str = DEFAULT_NAMESPACE, *, sample_rate: float = SAMPLE_RATE,
                  eval_every: int = 10, stale_samples: int | None = None, stagger: bool = True,
                  max_rigs: int = 10000, on_reject: Callable[[str, str, str], None] | None = None,
-                 on_warning: Callable[[str, str], None] | None = None, **fleet_kw):
+                 on_warning: Callable[[str, str], None] | None = None, book: RangesBook | None = None,
+                 node: str | None = None, epoch: int | None = None, **fleet_kw):
         self.namespace = check_namespace(namespace)
         self.eval_every = int(eval_every)
         if self.eval_every < 1:
@@ -132,7 +138,7 @@ class MonitorCore(RegularBatch):
         self.rigs: dict[str, _Rig] = {}
         self.configs: dict[str, RigConfig] = {}   # latest valid config per rig id
         self.latest: dict[str, bytes] = {}        # latest health payload per rig id
-        self._graded = self.fleet.graded
+        self.verdicts = Verdicts(self.fleet, self.namespace, book, node, epoch, on_warning)
         self._health_keys: list[str] = []          # per row
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
         self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
@@ -189,22 +195,32 @@ class MonitorCore(RegularBatch):
         self._back_warned[r] = False
 
     def _health(self, ev, t: np.ndarray, out: list) -> None:
-        """Health payloads of a batch's evaluations (``hydromon.engine.health_json``)."""
+        """Health payloads of a batch's evaluations (``hydromon.engine.verdicts``)."""
         seqs, status, msg = self._b_seqs, self._b_status, self._b_msg
         sample = ev.sample.tolist()
-        statuses = []
-        # a rig whose x1 went beyond a chamber's end has a wrong config or x1: its input is bad
-        bad_input = (ev.implausible | (ev.clamped > 0)).tolist()  # as of each event: batching-independent
-        for i, level, conv, bad in zip(sample, ev.level.tolist(), ev.converged.tolist(), bad_input):
-            st = status.get(i) if status else None  # bad-input (a rejected message) or stale
-            statuses.append(health_status(bad or st == "bad-input", st == "stale", conv, level))
-        payloads = health_payloads([seqs[i] for i in sample], t[ev.sample], ev.level, ev.confidence, ev.params,
-                                   ev.std_errors, ev.grades, statuses, self._graded)
+        flagged = [status.get(i) for i in sample] if status else [None] * len(sample)
+        payloads = self.verdicts.payloads(ev, [seqs[i] for i in sample], t[ev.sample], flagged)
         ids, keys, latest = self.fleet.ids, self._health_keys, self.latest
         for i, r, payload in zip(sample, ev.rig.tolist(), payloads):
             latest[ids[r]] = payload
             out.append((msg[i], keys[r], payload))
         self.counters.health += len(ev)
+
+    def take_events(self) -> list[tuple[str, bytes]]:
+        """The grade and status changes announced since the last call, as ``(event key, payload)``
+        in order (``hydromon.engine.events``); the node publishes them after the health."""
+        return self.verdicts.take_events()
+
+    def ranges_changed(self, rig_id: str) -> None:
+        """Look up again which ranges grade ``rig_id`` (after its ranges in the book changed)."""
+        rig = self.rigs.get(rig_id)
+        if rig is not None:
+            self.verdicts.apply(rig.row, rig.config)
+
+    def ranges_of(self, rig_id: str):
+        """``(Ranges, tag)`` the rig is graded on; ``(None, None)`` when none (or an unknown rig)."""
+        rig = self.rigs.get(rig_id)
+        return (None, None) if rig is None else self.verdicts.ranges_of(rig.row)
 
     def last_seqs(self) -> np.ndarray:
         """The last seq taken of each rig, by row (-1: none yet); a copy."""
@@ -225,7 +241,9 @@ class MonitorCore(RegularBatch):
                 continue
             h["status"] = "stale"
             payload = self.latest[rig_id] = orjson.dumps(h)
-            out.append((self._health_keys[self.rigs[rig_id].row], payload))
+            row = self.rigs[rig_id].row
+            out.append((self._health_keys[row], payload))
+            self.verdicts.stale(row, h["seq"], h["t"], -1 if h["level"] is None else h["level"], payload)
         self.counters.stale_resent += len(out)
         return out
 
@@ -246,6 +264,7 @@ class MonitorCore(RegularBatch):
         if rig is None:
             config = self.configs.get(rig_id)
             row = self.fleet.add_rig(rig_id, config)  # a forgotten rig's row, or a new one
+            self.verdicts.announcer.reset(row)
             if row >= len(self._last):
                 grow = len(self._last)
                 for name, value, dtype in _ROW_STATE:
@@ -256,6 +275,7 @@ class MonitorCore(RegularBatch):
             else:
                 self._health_keys.append(health_key(rig_id, self.namespace))
             self._forgotten.pop(rig_id, None)  # back: its kept config is in use again
+            self.verdicts.apply(row, config)
         return rig
 
     def forget(self, rig_ids: Iterable[str]) -> list[str]:
@@ -272,6 +292,7 @@ class MonitorCore(RegularBatch):
                 continue
             r = rig.row
             self.fleet.remove_rig(rig_id)
+            self.verdicts.forget(r)
             self.latest.pop(rig_id, None)
             self._known.pop(sample_key(rig_id, self.namespace), None)
             for name, value, _ in _ROW_STATE:
@@ -323,6 +344,7 @@ class MonitorCore(RegularBatch):
         self.fleet.set_config(rig.row, config)
         self._restarted(rig.row)
         rig.config = config
+        self.verdicts.apply(rig.row, config)  # ranges made for the old constants do not fit the new
         self._n[rig.row], self._gap[rig.row] = 0, -1
         self.counters.config_changes += 1
 

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, replace
 
 from hydromon.engine.record import Recording
+from hydromon.engine.ranges_book import COMMISSION_HINT
 from hydromon.engine.status import health_status
 from monitor.grading import Ranges
 from monitor.ident_options import IdentOptions
@@ -29,18 +30,21 @@ class Evaluation:
     refined: Refinement | None = None  # the whole-record prediction-error fit, when asked for
     glitches: dict[str, int] | None = None  # sensor samples the outlier gate replaced, per sensor
     history: Events | None = None  # every evaluation of the run (sample index into the recording)
-    ranges: Ranges | None = None  # the health ranges graded against
+    ranges: Ranges | None = None  # the health ranges graded against (None: none made for the rig)
     x1_clamped: int = 0  # samples whose x1 would have emptied a chamber (config or x1 wrong)
     options: IdentOptions | None = None  # the identifier's options (None: defaults)
+    uncalibrated: str | None = None  # why no ranges grade the rig (None: some do)
 
     @property
     def status(self) -> str:
         """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``) or x1
-        went beyond a chamber's end,
-        ``ok`` once converged with a grade placed, else ``converging`` (the live monitor's
-        statuses: a converged rig whose grade cannot be placed, level -1, is still converging)."""
+        went beyond a chamber's end, ``uncalibrated`` when no ranges were made for the rig's
+        constants, ``ok`` once converged with a grade placed, else ``converging`` (the live
+        monitor's statuses: a converged rig whose grade cannot be placed, level -1, is still
+        converging)."""
         a = self.assessment
-        return health_status(bool(a.implausible or self.x1_clamped), False, a.converged, a.level)
+        return health_status(bool(a.implausible or self.x1_clamped), False, a.converged, a.level,
+                             self.uncalibrated is None)
 
     @property
     def memory_s(self) -> float | None:
@@ -51,13 +55,17 @@ class Evaluation:
 def evaluate(recording: Recording, ranges: Ranges | None = None,
              options: IdentOptions | None = None, refined: bool = False) -> Evaluation:
     """Run the monitor pipeline over the whole recording; the last assessment is the result.
-    With ``refined``, also fit the whole model to the record by prediction error
-    (``monitor.refine``), started from the pipeline's estimates."""
+    ``ranges`` (default ``Ranges.default()``) grade the record only if they were made for its
+    rig constants; otherwise it is reported ungraded (``uncalibrated``, with why). With
+    ``refined``, also fit the whole model to the record by prediction error (``monitor.refine``),
+    started from the pipeline's estimates."""
     pipe = Pipeline(config=recording.config, options=options, ranges=ranges)
     events, assessment = pipe.run(recording.samples, recording.restarts)
     ref = _refine(recording, options, assessment) if refined else None
-    return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events, pipe.fleet.ranges,
-                      pipe.fleet.x1_clamped(0), options)
+    why = pipe.fleet.why[0]
+    return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events,
+                      pipe.fleet.ranges if why is None else None, pipe.fleet.x1_clamped(0), options,
+                      None if why is None else f"{why}; {COMMISSION_HINT}")
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

@@ -7,7 +7,8 @@ numpy for the whole batch, and per row dict displays rather than loops over the 
 
 JSON has no NaN or infinity: a parameter whose estimate or standard error is not finite is
 left out; confidence is clipped to [0, 1] (0 when not finite, and never -0.0); ``level`` -1
-is ``null`` with grade ``"unknown"``.
+is ``null`` with grade ``"unknown"``. ``ranges`` (the tag of the ranges the rig is graded on, null
+when none) is always there; ``node`` and ``epoch`` when the monitor has them.
 """
 
 from __future__ import annotations
@@ -25,10 +26,11 @@ _GRADE_NAMES = GRADES + ("unknown",)  # level -1 -> "unknown"
 
 
 def health_payload(seq: int, t: float, level: int, confidence: float, params, std_errors, grades,
-                   status: str, graded: tuple) -> bytes:
+                   status: str, graded: tuple, ranges: str | None = None, node: str | None = None,
+                   epoch: int | None = None) -> bytes:
     """One health payload, the defining way (params/std_errors by PARAM_NAMES, grades by graded)."""
     conf = min(1.0, max(0.0, confidence)) if math.isfinite(confidence) else 0.0
-    return orjson.dumps({
+    d = {
         "seq": seq, "t": t,
         "grade": _GRADE_NAMES[level],
         "level": level if level >= 0 else None,
@@ -37,7 +39,13 @@ def health_payload(seq: int, t: float, level: int, confidence: float, params, st
         "param_grades": {k: _GRADE_NAMES[g] for k, g in zip(graded, grades)},
         "status": status,
         "std_errors": {k: v for k, v in zip(PARAM_NAMES, std_errors) if math.isfinite(v)},
-    })
+        "ranges": ranges,
+    }
+    if node is not None:
+        d["node"] = node
+    if epoch is not None:
+        d["epoch"] = epoch
+    return orjson.dumps(d)
 
 
 def _display_12(r: list, k: tuple = PARAM_NAMES) -> dict:
@@ -82,36 +90,49 @@ def _grade_dict(graded: tuple, grades: tuple) -> dict:
 
 
 def health_payloads(seqs: list, t: np.ndarray, level: np.ndarray, confidence: np.ndarray, params: np.ndarray,
-                    std_errors: np.ndarray, grades: np.ndarray, statuses: list, graded: tuple) -> list[bytes]:
+                    std_errors: np.ndarray, grades: np.ndarray, statuses: list, graded, ranges=None,
+                    node: str | None = None, epoch: int | None = None) -> list[bytes]:
     """Payloads of n evaluations: seqs (n ints), t [s] (n,), level (n,) in -1..4, confidence
-    (n,), params and std_errors (n, len(PARAM_NAMES)) SI, grades (n, len(graded)) in -1..4,
-    statuses (n str): :func:`health_payload` of each, byte for byte (a property test).
+    (n,), params and std_errors (n, len(PARAM_NAMES)) SI, grades (n, G >= len(graded)) in -1..4,
+    statuses (n str), ``graded`` the graded names (one tuple for all, or one per evaluation),
+    ``ranges`` the ranges' tag (one for all, or one per evaluation): :func:`health_payload` of
+    each, byte for byte (a property test).
 
     Per row: the ``params`` / ``std_errors`` dicts from one display each (a row with all twelve
     finite, the common case, skips the mask), the ``param_grades`` dict from a cache by grades.
     """
     n = len(seqs)
     npar = len(PARAM_NAMES)
-    if params.shape != (n, npar) or std_errors.shape != (n, npar) or grades.shape != (n, len(graded)):
+    each = graded if isinstance(graded, list) else [tuple(graded)] * n
+    tags = ranges if isinstance(ranges, list) else [ranges] * n
+    widest = max(map(len, each), default=0)
+    if params.shape != (n, npar) or std_errors.shape != (n, npar) or grades.shape[0] != n or \
+            (n and grades.shape[1] < widest) or len(each) != n or len(tags) != n:
         raise ValueError(f"shapes: params {params.shape}, std_errors {std_errors.shape}, grades {grades.shape} "
-                         f"for {n} evaluations of {npar} parameters, {len(graded)} graded")
+                         f"for {n} evaluations of {npar} parameters, {widest} graded")
     if n == 0:
         return []
-    graded = tuple(graded)  # a key of the param_grades cache
     dumps, names, by_name, finite_by_name = orjson.dumps, _GRADE_NAMES, _by_name, _finite_by_name
     conf = np.asarray(confidence, dtype=np.float64)
     # min(1, max(0, c)) where finite, else 0; + 0.0 makes a -0.0 0.0 (max(0.0, -0.0) is 0.0)
     conf = (np.where(np.isfinite(conf), np.minimum(1.0, np.maximum(0.0, conf)), 0.0) + 0.0).tolist()
     p_fin, s_fin = np.isfinite(params), np.isfinite(std_errors)
+    tail = {}
+    if node is not None:
+        tail["node"] = node
+    if epoch is not None:
+        tail["epoch"] = epoch
     return [dumps({
         "seq": seq, "t": tj,
         "grade": names[lv],
         "level": lv if lv >= 0 else None,
         "confidence": cj,
         "params": by_name(pj) if pa else finite_by_name(pj, pm),
-        "param_grades": _grade_dict(graded, gj),
+        "param_grades": _grade_dict(gr, tuple(gj[:len(gr)])),
         "status": st,
         "std_errors": by_name(sj) if sa else finite_by_name(sj, sm),
-    }) for seq, tj, lv, cj, pj, pa, pm, sj, sa, sm, gj, st in zip(
+        "ranges": tag,
+        **tail,
+    }) for seq, tj, lv, cj, pj, pa, pm, sj, sa, sm, gj, st, gr, tag in zip(
         seqs, t.tolist(), level.tolist(), conf, params.tolist(), p_fin.all(axis=1).tolist(), p_fin.tolist(),
-        std_errors.tolist(), s_fin.all(axis=1).tolist(), s_fin.tolist(), map(tuple, grades.tolist()), statuses)]
+        std_errors.tolist(), s_fin.all(axis=1).tolist(), s_fin.tolist(), grades.tolist(), statuses, each, tags)]

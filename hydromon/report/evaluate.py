@@ -41,6 +41,7 @@ def to_json(ev: Evaluation) -> dict:
     out["timestamp_jitter"] = {"intervals": rec.jitter, "max_s": rec.jitter_max}
     out["config_changes"] = {"count": rec.config_changes, "skipped_samples": rec.skipped}
     out["memory_s"] = ev.memory_s  # None: a growing window
+    out["uncalibrated"] = ev.uncalibrated  # why no ranges grade the rig (None: some do)
     if ev.refined is not None:  # present only when --refine ran
         r = ev.refined
         out["refined"] = {"ok": r.ok, "message": r.message,
@@ -62,6 +63,8 @@ def render(ev: Evaluation, console=None) -> None:
     level = "unknown" if a.level < 0 else str(a.level)
     console.print(f"grade [bold]{a.grade}[/bold]  level {level}  confidence {a.confidence:.3f}  "
                   f"status {ev.status}")
+    if ev.uncalibrated is not None:
+        console.print(f"[yellow]not graded: {ev.uncalibrated}[/yellow]")
     if ev.memory_s is not None:  # the default, a growing window, needs no line
         console.print(f"estimators' memory {ev.memory_s:g} s (--memory): data older than that fades")
     t = Table(show_header=True, header_style="bold")

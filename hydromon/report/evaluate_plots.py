@@ -47,7 +47,7 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    if ev.history is None or ev.ranges is None:
+    if ev.history is None:
         raise ValueError("this evaluation has no history to plot (evaluate() keeps it)")
     rec, h = ev.recording, ev.history
     out = Path(directory)
@@ -72,7 +72,8 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
             ax.axvline(tg, color="k", ls=":", lw=0.8)
 
     # grade: the fused level (unknown = -1) and confidence; per-parameter grades as a strip
-    graded = ev.ranges.to_arrays().names
+    bands = ev.ranges.params if ev.ranges is not None else {}  # none: the rig is not graded
+    graded = tuple(n for n in PARAM_NAMES if n in bands)
     fig, (ax, ax_p) = plt.subplots(2, 1, figsize=(9, 3.2 + 0.35 * len(graded)), sharex=True,
                                    gridspec_kw={"height_ratios": [3, max(1, len(graded))]})
     ax.step(t_ev, h.level, where="post", color="tab:blue", lw=1.5, label="grade")
@@ -110,8 +111,8 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
         axj.fill_between(t_ev, np.where(ok, p - 3 * s, np.nan), np.where(ok, p + 3 * s, np.nan),
                          color="tab:blue", alpha=0.2, lw=0)
         final = ev.assessment.params[k]
-        if k in ev.ranges.params:
-            for e in np.unique(ev.ranges.params[k].edge_array()):
+        if k in bands:
+            for e in np.unique(bands[k].edge_array()):
                 axj.axhline(e, color="tab:red", lw=0.6, ls="--")
         if ev.refined is not None and k in ev.refined.params and np.isfinite(ev.refined.params[k]):
             axj.axhline(ev.refined.params[k], color="tab:green", lw=1.0, ls="-.", label="refined")
@@ -121,8 +122,8 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
             tail, sd = (p[ok][-max(1, ok.sum() // 5):], s[ok][-max(1, ok.sum() // 5):]) if ok.any() \
                 else (np.array([final]), np.array([0.0]))
             lo, hi = np.min(tail - 4 * sd), np.max(tail + 4 * sd)
-            if k in ev.ranges.params:
-                e = ev.ranges.params[k].edge_array()
+            if k in bands:
+                e = bands[k].edge_array()
                 below, above = e[e <= final], e[e > final]
                 lo = min(lo, below.max()) if below.size else lo
                 hi = max(hi, above.min()) if above.size else hi

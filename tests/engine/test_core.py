@@ -13,6 +13,7 @@ from hydromon.engine.samples import sample_payload
 from hydromon.engine.validate import REJECT_REASONS
 from hydromon.store.fleetfile import FleetSpec, default_fleet
 from monitor.pipeline import eval_phase
+from monitor.ranges import Ranges
 from plant_sim.degradation import TABLE4_PAPER_GRADES
 
 NS = "hydro"
@@ -53,7 +54,8 @@ def test_clean_run_gives_valid_health_and_true_grades(clean_run):
         assert last.status == "ok"
         assert last.grade == TABLE4_PAPER_GRADES[int(rig[-1])]
         assert core.latest[rig] == payloads[-1]
-        assert set(last.param_grades) == set(core.fleet.graded)
+        assert set(last.param_grades) == set(core.fleet.graded(core.rigs[rig].row)) == set(Ranges.default().params)
+        assert last.ranges == "default"
 
 
 def test_batching_does_not_change_health():
@@ -333,9 +335,11 @@ def test_the_exit_summary_names_rigs_whose_x1_empties_a_chamber():
 def test_a_rig_whose_x1_empties_a_chamber_is_warned_of_once_while_running():
     from hydromon.engine.core import X1_CLAMPED_WARNING
 
-    warnings, changes = [], []
-    # (config changes are warned of too: counted apart)
-    core = MonitorCore(NS, on_warning=lambda rig, msg: (changes if msg.startswith("config changed") else warnings)
+    warnings, changes, others = [], [], []
+    # (config changes are warned of too: counted apart; so is the rig left ungraded, its constants
+    # not the reference rig's)
+    core = MonitorCore(NS, on_warning=lambda rig, msg: (changes if msg.startswith("config changed") else
+                                                        warnings if msg == X1_CLAMPED_WARNING else others)
                        .append((rig, msg)))
     cfg = lambda v10: (f"{NS}/rig/bad/config", orjson.dumps(RigConfig(V10=v10).model_dump(mode="json")))  # noqa: E731
 

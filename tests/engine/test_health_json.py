@@ -27,18 +27,22 @@ def batches(draw):
         confidence=draw(hnp.arrays(np.float64, n, elements=FLOATS)),
         params=draw(hnp.arrays(np.float64, (n, P), elements=FLOATS)),
         std_errors=draw(hnp.arrays(np.float64, (n, P), elements=FLOATS)),
-        grades=draw(hnp.arrays(np.int64, (n, len(GRADED)), elements=st.integers(-1, 4))),
+        grades=draw(hnp.arrays(np.int64, (n, P), elements=st.integers(-1, 4))),
         statuses=draw(st.lists(st.sampled_from(STATUSES), min_size=n, max_size=n)),
+        graded=draw(st.lists(st.sampled_from([GRADED, (), ("K_sv",), PARAM_NAMES]), min_size=n, max_size=n)),
+        ranges=draw(st.lists(st.sampled_from([None, "default", "rig-7.json (2026-11-27T10:00:00Z)"]), min_size=n,
+                             max_size=n)),
     )
 
 
 @settings(max_examples=300, deadline=None)
-@given(b=batches())
-def test_batch_payloads_are_the_dict_payloads_byte_for_byte(b):
-    got = health_payloads(**b, graded=GRADED)
+@given(b=batches(), node=st.sampled_from([None, "m1"]), epoch=st.sampled_from([None, 0, 2**40]))
+def test_batch_payloads_are_the_dict_payloads_byte_for_byte(b, node, epoch):
+    got = health_payloads(**b, node=node, epoch=epoch)
     want = [health_payload(b["seqs"][j], float(b["t"][j]), int(b["level"][j]), float(b["confidence"][j]),
-                           b["params"][j].tolist(), b["std_errors"][j].tolist(), b["grades"][j].tolist(),
-                           b["statuses"][j], GRADED) for j in range(len(b["seqs"]))]
+                           b["params"][j].tolist(), b["std_errors"][j].tolist(),
+                           b["grades"][j].tolist()[:len(b["graded"][j])], b["statuses"][j], b["graded"][j],
+                           b["ranges"][j], node, epoch) for j in range(len(b["seqs"]))]
     assert got == want
     for payload in got:  # and what they give is a valid contract message
         h = Health.model_validate_json(payload)
@@ -52,7 +56,7 @@ def test_non_finite_numbers_are_left_out():
     s = np.full((1, P), np.inf)
     s[0, 0] = 0.1
     (payload,) = health_payloads([7], np.array([0.07]), np.array([-1]), np.array([np.nan]), p, s,
-                                 np.full((1, 5), -1), ["converging"], GRADED)
+                                 np.full((1, P), -1), ["converging"], GRADED)
     d = orjson.loads(payload)
     assert d["level"] is None and d["grade"] == "unknown" and d["confidence"] == 0.0
     assert PARAM_NAMES[3] not in d["params"] and len(d["params"]) == P - 1

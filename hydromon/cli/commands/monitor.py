@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 
 from hydromon.cli.busopts import add_bus_arguments, session_from_args
 from hydromon.cli.memory import add_memory_argument, options_from_args
@@ -36,6 +37,10 @@ def add_arguments(parser) -> None:
                              "health are dropped and its place goes to new rigs, so rig ids that come and go "
                              "never fill --max-rigs; if it comes back it starts afresh (default: never)")
     add_ranges_argument(parser)
+    parser.add_argument("--ranges-dir", default=None, metavar="DIR",
+                        help="a directory of per-rig ranges files <rig-id>.json (hydromon commission writes them): "
+                             "each grades its rig, reloaded when it changes (logged); a bad file is refused and "
+                             "the rig keeps the ranges it had; rigs without a file take --ranges if made for them")
     add_memory_argument(parser)
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads for the estimators when many samples arrive at once (rigs split "
@@ -49,6 +54,7 @@ def run(args) -> int:
     from hydromon.engine.core import MonitorCore
     from hydromon.engine.watches import RateLimitedLog
     from hydromon.bus.monitor import log_rig_warning, rig_pattern, run_monitor
+    from hydromon.store.ranges_dir import RangesDir
 
     # every option is checked here, before the bus opens and the banner is printed
     checks.positive("--duration", args.duration)
@@ -67,10 +73,12 @@ def run(args) -> int:
     except ValueError as exc:
         raise ValueError(f"--rigs: {exc}") from None
     ranges = ranges_from_args(args)  # a bad file fails here, before the bus
+    ranges_dir = RangesDir(args.ranges_dir) if args.ranges_dir is not None else None
     options = options_from_args(args, MonitorCore.SAMPLE_RATE)
+    # the epoch: this start of the node, later than any earlier start of it (ms of the wall clock)
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
                        on_warning=log_rig_warning, threads=args.threads, ranges=ranges, max_rigs=args.max_rigs,
-                       options=options)
+                       options=options, node=args.node, epoch=time.time_ns() // 1_000_000)
     stop = threading.Event()
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
     try:
@@ -79,7 +87,7 @@ def run(args) -> int:
                   file=sys.stderr, flush=True)
             run_monitor(session, namespace=args.namespace, node_name=args.node, stop_event=stop,
                         duration=args.duration, core=core, rigs=args.rigs, stale_after_s=args.stale_after,
-                        forget_after_s=args.forget_after)
+                        forget_after_s=args.forget_after, ranges_dir=ranges_dir)
     finally:
         restore_signals()
     c = core.counters

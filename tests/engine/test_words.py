@@ -1,6 +1,6 @@
 """Why a rig has its grade, in words: what each parameter is and how far it moved."""
 
-from hydromon.report.words import parameter_words, se_text, why_words
+from hydromon.engine.words import parameter_words, se_text, why_words
 from monitor.ranges import Ranges
 
 
