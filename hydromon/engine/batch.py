@@ -92,7 +92,7 @@ class RegularBatch:
         prev[first] = self._last[r_s[first]]
         irregular = (s_s != prev + 1) | (prev < 0)
         slow[r_s[irregular]] = True
-        slow |= (self._gap >= 0) | self._bad | (self._back_n > 0)
+        slow |= (self._gap >= 0) | self._bad | (self._back_n > 0) | self._holding
         keep = ~slow[rows]
         index = np.arange(len(messages)) if pick is None else np.asarray(pick)  # message of each candidate
         if keep.all():

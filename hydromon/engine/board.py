@@ -20,9 +20,13 @@ from pydantic import ValidationError
 
 from hydromon.contract import DEFAULT_NAMESPACE, Health, split_rig_key
 
-__all__ = ["Board", "attention_order"]
+__all__ = ["NO_MONITOR", "Board", "attention_order"]
 
-_ATTENTION = {"bad-input": 0, "ok": 1, "converging": 1, "stale": 1}
+NO_MONITOR = "no monitor"
+"""What a rig shows when the monitor that graded it is gone (its liveliness token undeclared)."""
+
+_ATTENTION = {"bad-input": 0, "uncalibrated": 1, "ok": 2, "converging": 2, "commissioning": 2, "stale": 2,
+              NO_MONITOR: 2}
 
 
 @dataclass
@@ -34,9 +38,21 @@ class Board:
     arrived: dict[str, float] = field(default_factory=dict)
     invalid: int = 0   # health payloads that are not the contract's Health
     foreign: int = 0   # messages on keys that are not <ns>/rig/<id>/health
+    # the monitors by node name, alive or gone (their liveliness tokens), when the reader follows them
+    monitors: dict[str, bool] = field(default_factory=dict)
+    following: bool = False
+    owner: dict[str, tuple] = field(default_factory=dict)  # rig -> (node, epoch) of its verdict shown
+    not_shown: int = 0  # verdicts from a node that is not the rig's current, live monitor
+
+    def monitor(self, node: str, alive: bool) -> None:
+        """A monitor's liveliness token came (``alive``) or went; following them from now on."""
+        self.following = True
+        self.monitors[node] = alive
 
     def update(self, key: str, payload: bytes, now: float) -> bool:
-        """Take one health message; False (and counted) if its key or payload is not valid."""
+        """Take one health message; False (and counted) if its key or payload is not valid, or
+        (while following the monitors) it comes from no live monitor, or from another node than
+        the rig's current live monitor, or from an older start (epoch) of it."""
         parts = split_rig_key(key, self.ns)
         if isinstance(parts, str) or parts[1] != "health":
             self.foreign += 1
@@ -46,19 +62,38 @@ class Board:
         except ValidationError:
             self.invalid += 1
             return False
-        self.latest[parts[0]] = health.model_dump(exclude_unset=True)  # as published
-        self.arrived[parts[0]] = now
+        rig, node, epoch = parts[0], health.node, health.epoch
+        if node is not None and self.following:
+            cur = self.owner.get(rig)
+            if not self.monitors.get(node, False) or cur is not None and (
+                    cur[0] == node and (epoch or 0) < (cur[1] or 0)
+                    or cur[0] != node and self.monitors.get(cur[0], False)):
+                self.not_shown += 1
+                return False
+        self.owner[rig] = (node, epoch)
+        self.latest[rig] = health.model_dump(exclude_unset=True)  # as published
+        self.arrived[rig] = now
         return True
+
+    def status(self, rig: str) -> str:
+        """The rig's status as shown: its verdict's, or ``no monitor`` once the monitor that gave
+        it is gone."""
+        node = self.owner.get(rig, (None,))[0]
+        if self.following and node is not None and not self.monitors.get(node, False):
+            return NO_MONITOR
+        return self.latest[rig]["status"]
 
     def grade_counts(self) -> Counter:
         """Rigs per grade name (``unknown`` included)."""
         return Counter(h["grade"] for h in self.latest.values())
 
 
-def attention_order(item) -> tuple:
-    """Sort key of a ``(rig id, health dict)``: the rigs that need attention first."""
+def attention_order(item, status: str | None = None) -> tuple:
+    """Sort key of a ``(rig id, health dict)`` (``status``: as shown, default the verdict's): the
+    rigs that need attention first, stale and monitor-less ones last."""
     rig, h = item
+    status = status or h["status"]
     level = h["level"] if h["level"] is not None else -1
-    return (_ATTENTION.get(h["status"], 1), -level, h["status"] == "stale", rig)
+    return (_ATTENTION.get(status, 2), -level, status in ("stale", NO_MONITOR), rig)
 
 

@@ -34,18 +34,24 @@ import numpy as np
 import orjson
 
 from hydromon.contract import (
-    DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, check_namespace, health_key, sample_key, split_rig_key,
+    DEFAULT_NAMESPACE,
+    RESTART_RUN,
+    RigConfig,
+    check_namespace,
+    health_key,
+    sample_key,
+    split_rig_key,
 )
 from hydromon.engine.batch import RegularBatch
 from hydromon.engine.counters import MonitorCounters
-from hydromon.engine.validate import Rejected, decode_json, parse_config, parse_sample
-from hydromon.engine.sequence import DUPLICATE, GAP, OUT_OF_ORDER, RESTART, sequence_step
 from hydromon.engine.ranges_book import RangesBook
+from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, RESTART, SeqState, sequence_push
+from hydromon.engine.validate import Rejected, decode_json, parse_config, parse_sample
 from hydromon.engine.verdicts import Verdicts
 from monitor.drive import command_for_drive
 from monitor.pipeline import Fleet
 
-__all__ = ["MonitorCore", "X1_CLAMPED_WARNING"]
+__all__ = ["X1_CLAMPED_WARNING", "MonitorCore"]
 
 
 X1_CLAMPED_WARNING = ("x1 went beyond a chamber's end: the rig constants (A1, A2, V10, V20) or x1's zero, "
@@ -69,6 +75,7 @@ _ROW_STATE = (
     ("_back_n", 0, np.int64),          # samples in a row below the last seq (a restart?)
     ("_back_seq", -1, np.int64),       # the last of them
     ("_back_warned", False, np.bool_),  # warned of a seq going back
+    ("_holding", False, np.bool_),     # samples held back by the sequence rule (in _held)
 )
 
 _ROW = attrgetter("row")
@@ -144,6 +151,7 @@ class MonitorCore(RegularBatch):
         self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
         self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
         self._cur = 0  # index in the current process() call of the message being taken one by one
+        self._held: dict[int, SeqState] = {}  # by row: a rig's sequence state while it holds samples back
         # sequence state per row (arrays, so a batch of regular samples is checked at once)
         for name, value, dtype in _ROW_STATE:
             setattr(self, name, np.full(16, value, dtype=dtype))
@@ -293,6 +301,7 @@ class MonitorCore(RegularBatch):
             r = rig.row
             self.fleet.remove_rig(rig_id)
             self.verdicts.forget(r)
+            self._held.pop(r, None)
             self.latest.pop(rig_id, None)
             self._known.pop(sample_key(rig_id, self.namespace), None)
             for name, value, _ in _ROW_STATE:
@@ -367,13 +376,42 @@ class MonitorCore(RegularBatch):
         self._take(rig.row, vals, out)
 
     def _take(self, r: int, vals: tuple, out: list) -> None:
-        """Sequence checks of a valid sample of the rig in row ``r``, then into the batch."""
+        """A valid sample of the rig in row ``r`` through its sequence rule
+        (``hydromon.engine.sequence``): into the batch, held back, or dropped and counted."""
         if len(vals) == 8:  # the rig publishes its valve drive u: the identifier takes it exactly
             config = self.rigs[self.fleet.ids[r]].config or RigConfig()
             vals = (vals[0], vals[1], command_for_drive(vals[7], vals[3], config.K_p, config.K_f), *vals[3:7])
-        seq, last, gap = vals[0], int(self._last[r]), int(self._gap[r])
-        verdict, self._back_n[r], self._back_seq[r] = sequence_step(last, int(self._back_n[r]),
-                                                                    int(self._back_seq[r]), seq)
+        st = self._held.pop(r, None) or SeqState(int(self._last[r]), int(self._back_n[r]), int(self._back_seq[r]))
+        before = st.last
+        taken, dropped = sequence_push(st, vals[0], vals)
+        self._back_n[r], self._back_seq[r] = st.back_n, st.back_seq
+        if st.held:
+            self._held[r] = st
+        self._holding[r] = bool(st.held)
+        for verdict, seq, _ in dropped:
+            self._drop(r, verdict, seq, before)
+        for verdict, seq, tok in taken:
+            self._accept(r, verdict, seq, tok, before, out)
+            before = seq
+
+    def _drop(self, r: int, verdict: int, seq: int, last: int) -> None:
+        if verdict == DUPLICATE:
+            self.counters.duplicate += 1
+            return
+        if verdict == AHEAD:
+            self.counters.ahead += 1
+            what = (f"seq {seq} far ahead of {last}, and no run of samples followed it: dropped (a corrupt or "
+                    "forged seq?)")
+        else:
+            self.counters.out_of_order += 1
+            what = (f"seq {seq} after {last}: dropped (out of order; two publishers under one rig id?)")
+        if not self._back_warned[r] and self.on_warning is not None:
+            self._back_warned[r] = True
+            self.on_warning(self.fleet.ids[r], f"{what}; further ones are counted, not logged")
+
+    def _accept(self, r: int, verdict: int, seq: int, vals: tuple, last: int, out: list) -> None:
+        """A sample the sequence rule takes (``verdict`` TAKE, GAP or RESTART), after ``last``."""
+        gap = int(self._gap[r])
         if verdict == RESTART:  # the rig restarted (or a replay looped): start afresh
             if seq != 0 and self.on_warning is not None:
                 self.on_warning(self.fleet.ids[r], f"seq went back from {last} and ran on for {RESTART_RUN} "
@@ -384,17 +422,6 @@ class MonitorCore(RegularBatch):
             self._restarted(r)
             self._n[r], gap = 0, -1
             self.counters.restarts += 1
-        elif verdict == DUPLICATE:
-            self.counters.duplicate += 1
-            return
-        elif verdict == OUT_OF_ORDER:
-            self.counters.out_of_order += 1
-            if not self._back_warned[r] and self.on_warning is not None:
-                self._back_warned[r] = True
-                self.on_warning(self.fleet.ids[r], f"seq {seq} after {last}: dropped (out of order; two "
-                                                   "publishers under one rig id? further ones are counted, "
-                                                   "not logged)")
-            return
         elif verdict == GAP:
             self._flush(out)  # the filters restart between the rig's old and new samples
             self.fleet.reset_signals(r)

@@ -27,11 +27,11 @@ def _why(h: dict) -> str:
 def board_rows(board: Board, now: float, top: int | None = None) -> tuple[list[list[str]], int]:
     """Rows of :data:`BOARD_HEAD` (strings), the rigs that need attention first, and how many
     rigs ``top`` left out."""
-    items = sorted(board.latest.items(), key=attention_order)
+    items = sorted(board.latest.items(), key=lambda it: attention_order(it, board.status(it[0])))
     shown = items if top is None else items[:top]
     rows = []
     for rig, h in shown:
-        rows.append([rig, h["grade"], f"{h['confidence']:.2f}", h["status"], _why(h),
+        rows.append([rig, h["grade"], f"{h['confidence']:.2f}", board.status(rig), _why(h),
                      *[fmt_value(h["params"].get(p)) for p in TABLE_PARAMS], f"{h['t']:.1f}",
                      f"{max(0.0, now - board.arrived[rig]):.1f}"])
     return rows, len(items) - len(shown)

@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from hydromon.contract import RigConfig
-from hydromon.engine.sequence import DUPLICATE, GAP, OUT_OF_ORDER, RESTART, TAKEN, sequence_verdicts
 from hydromon.engine.record import Recording
+from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, OUT_OF_ORDER, RESTART, sequence_order
 from hydromon.store.csvfile import read_csv
-from monitor.drive import command_for_drive
 from hydromon.store.sampling import check_sampling, time_jitter
+from monitor.drive import command_for_drive
 
 __all__ = ["Recording", "load_recording"]
 
@@ -132,24 +132,28 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         # skipped invalid samples) and never reads t, so t off the grid is counted, not refused.
         # Its seq tracking runs on through a config change (a duplicate of the last seq before the
         # change is dropped after it, a gap across it counted); only a rig restart resets it
-        verdicts = sequence_verdicts(seq)
-        restarts = np.flatnonzero(verdicts == RESTART)
-        s0 = int(restarts[restarts <= first].max(initial=0))
-        later = restarts[restarts > s0]
+        order, verdicts, dropped = sequence_order(seq)
+        restarts = np.flatnonzero(verdicts == RESTART)  # positions in the order taken
+        p0 = int(restarts[order[restarts] <= first].max(initial=0))
+        later = restarts[restarts > p0]
         if later.size:  # one evaluation grades one run of the rig
-            i = int(later[0])
-            raise ValueError(f"{where}: seq goes from {int(seq[s0:i].max())} back to {int(seq[i])} at sample {i} "
-                             f"(t = {float(data[i, 0])!r} s; the rig restarted): evaluate one run at a time, or "
+            i = int(order[later[0]])
+            raise ValueError(f"{where}: seq goes from {int(seq[order[p0]:i].max())} back to {int(seq[i])} at sample "
+                             f"{i} (t = {float(data[i, 0])!r} s; the rig restarted): evaluate one run at a time, or "
                              "replay the recording (hydromon replay --direct), which handles restarts")
-        v = verdicts[s0:]
-        duplicate, out_of_order = int(np.sum(v == DUPLICATE)), int(np.sum(v == OUT_OF_ORDER))
-        idx = s0 + np.flatnonzero(np.isin(v, TAKEN))
-        gaps_at = np.flatnonzero(verdicts[idx] == GAP).tolist()
-        missing = int(np.sum(np.diff(seq[idx])[np.asarray(gaps_at, dtype=np.int64) - 1])) - len(gaps_at)
-        n_before = int(np.sum(idx < first))
+        s0 = int(order[p0])
+        after = dropped[s0:]
+        duplicate = int(np.sum(after == DUPLICATE))
+        out_of_order = int(np.sum((after == OUT_OF_ORDER) | (after == AHEAD)))
+        idx, v = order[p0:], verdicts[p0:]
+        gaps_at = np.flatnonzero(v == GAP)
+        # the seq tracking runs on through a config change, as live: a gap across it is counted
+        missing = int(sum(int(seq[idx[g]] - seq[idx[g - 1]]) - 1 for g in gaps_at if g > 0))
+        keep = idx >= first  # the estimates restart at the change: the samples before it are not graded
+        shift = np.cumsum(~keep)  # samples left out up to each position
         # the estimates restart at the change anyway: a gap right there restarts nothing more
-        restarts = [i - n_before for i in gaps_at if i - n_before > 0]
-        idx = idx[n_before:]
+        restarts = [int(g - shift[g]) for g in gaps_at if keep[g] and g - shift[g] > 0]
+        idx = idx[keep]
         data, seq = data[idx], seq[idx]
         driven = _take_drive(data, np.array(drive)[idx], config)
         jitter, jitter_max = time_jitter(data[:, 0], seq, config.sample_rate)

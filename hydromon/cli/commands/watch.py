@@ -40,11 +40,11 @@ def run(args) -> int:
     import orjson
     import zenoh
 
+    from hydromon.bus.monitor import rig_pattern
     from hydromon.cli import checks
     from hydromon.contract import check_namespace
-    from hydromon.bus.monitor import rig_pattern
-    from hydromon.report.board import render_board_plain, render_board_rich
     from hydromon.engine.board import Board
+    from hydromon.report.board import render_board_plain, render_board_rich
 
     checks.positive("--wait", args.wait)
     checks.positive("--duration", args.duration)
@@ -66,6 +66,14 @@ def run(args) -> int:
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
     try:
         with session_from_args(args) as session:
+            # the monitors alive now, and (following) their tokens coming and going: a verdict is
+            # shown only from a live monitor, and a rig whose monitor is gone says so
+            monitors = f"{args.namespace}/monitor/*"
+            for reply in session.liveliness().get(monitors, timeout=min(args.wait, 2.0)):
+                if reply.ok is not None:
+                    board.monitor(str(reply.ok.key_expr).rsplit("/", 1)[1], True)
+            live = None if args.once else session.liveliness().declare_subscriber(
+                monitors, zenoh.handlers.FifoChannel(10_000), history=True)
             # subscribe first: a verdict published while the query runs is not missed
             sub = None if args.once else session.declare_subscriber(key, zenoh.handlers.FifoChannel(100_000))
             # every monitor answers for the rigs it holds (sharded monitors each for theirs)
@@ -79,8 +87,9 @@ def run(args) -> int:
             if not board.latest:
                 print(f"hydromon watch: no monitor answered in {args.wait:g} s; following {key} for the next "
                       "verdicts (is a monitor running on this namespace, and reachable?)", file=sys.stderr, flush=True)
-            _follow(sub, board, args, stop, clock, top, render_board_plain, render_board_rich, key)
+            _follow(sub, live, board, args, stop, clock, top, render_board_plain, render_board_rich, key)
             sub.undeclare()
+            live.undeclare()
     finally:
         restore_signals()
     print(render_board_plain(board, clock(), top))
@@ -88,10 +97,13 @@ def run(args) -> int:
 
 
 def _print_once(board, args, orjson, render_plain, now, top) -> int:
+    from hydromon.engine.board import NO_MONITOR
+
     if args.json:
         counts = board.grade_counts()
         print(orjson.dumps({"rigs": dict(sorted(board.latest.items())), "counts": dict(sorted(counts.items())),
-                            "invalid": board.invalid}).decode())
+                            "invalid": board.invalid, "not_shown": board.not_shown,
+                            "no_monitor": sorted(r for r in board.latest if board.status(r) == NO_MONITOR)}).decode())
     elif board.latest:  # an empty table says nothing the error below does not
         print(render_plain(board, now, top))
     if not board.latest:
@@ -101,11 +113,16 @@ def _print_once(board, args, orjson, render_plain, now, top) -> int:
     return 0
 
 
-def _follow(sub, board, args, stop, clock, top, render_plain, render_rich, key) -> None:
-    """Take every verdict as it comes; redraw the board until Ctrl-C or --duration."""
+def _follow(sub, live, board, args, stop, clock, top, render_plain, render_rich, key) -> None:
+    """Take every verdict and every monitor's coming and going as they come; redraw the board
+    until Ctrl-C or --duration."""
+    import zenoh
+
     deadline = None if args.duration is None else clock() + args.duration
 
     def drain():
+        while (m := live.try_recv()) is not None:
+            board.monitor(str(m.key_expr).rsplit("/", 1)[1], m.kind == zenoh.SampleKind.PUT)
         while (m := sub.try_recv()) is not None:
             board.update(str(m.key_expr), m.payload.to_bytes(), clock())
 
