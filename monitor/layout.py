@@ -7,6 +7,8 @@ compiled kernels see them as literals.
 
 from __future__ import annotations
 
+import hashlib
+
 SG_HALF = 3  # half-width of the centred velocity window [samples]
 RING = 2 * SG_HALF + 1
 N_CH = 5  # ug, x1, x3, x4, x5
@@ -120,3 +122,8 @@ RIG_CONST_SIZE = C_KF + 1
 (H_H, H_LAM, H_WARM, H_STEP_TOL, H_BC, H_IV, H_IV_START, H_P0, H_PMAX, H_NOISE_N, H_VSTICK, H_GUARD,
  H_GATE2, H_OBS, H_WC, H_WC_DECAY, H_STEP_GUARD, H_REST, H_REST_DECAY, H_OBS_STEP) = range(20)
 HYPER_SIZE = H_OBS_STEP + 1
+
+# The layout's version: a digest of every field's name and size, of the constants' and the
+# hyperparameters' rows. Saved state (a monitor's checkpoint) records it, and state of another
+# layout is refused rather than read into the wrong offsets; no one has to remember to bump it.
+LAYOUT_VERSION = hashlib.sha256(repr((_FIELDS, RIG_CONST_SIZE, HYPER_SIZE)).encode()).hexdigest()[:16]

@@ -154,6 +154,15 @@ def fleet_messages(spec, seconds: float, ns: str = "hydro") -> list[tuple[str, b
     return msgs
 
 
+def without_node(payload: bytes) -> bytes:
+    """A health payload without the ``node`` and ``epoch`` that name the monitor that said it
+    (they end the payload): what a core that names no node gives for the same samples."""
+    h = orjson.loads(payload)
+    h.pop("node", None)
+    h.pop("epoch", None)
+    return orjson.dumps(h)
+
+
 def by_rig(health) -> dict[str, list[bytes]]:
     """Health payloads ``[(key, payload)]`` by rig id."""
     out = {}

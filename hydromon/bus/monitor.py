@@ -8,7 +8,7 @@ FIFO channel handlers (zenoh forbids blocking or calling its API inside callback
 drains everything queued into one batch (``try_recv`` until empty; the 1.x handlers have no
 ``recv`` with a timeout, so an empty channel waits ``poll_s`` on the stop event), health
 published with ``session.put``, each rig's sample and health keys declared on the session so
-zenoh routes them from a cache (:class:`RigKeys`), a liveliness token ``<ns>/monitor/<node>``
+zenoh routes them from a cache (``hydromon.bus.rig_keys``), a liveliness token ``<ns>/monitor/<node>``
 and a queryable on ``<ns>/rig/*/health`` that answers with each rig's latest health.
 """
 
@@ -22,15 +22,19 @@ from collections.abc import Callable
 
 import zenoh
 
+from hydromon.bus.checkpoints import Saver, restore_from
+from hydromon.bus.failover import Failover
 from hydromon.bus.quietgc import QuietGC
+from hydromon.bus.rig_keys import RigKeys
 from hydromon.bus.session import JSON
-from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, health_key, liveliness_key, ranges_key, sample_key
+from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, health_key, liveliness_key, ranges_key
 from hydromon.engine.core import MonitorCore
 from hydromon.engine.watches import BacklogWatch, RateLimitedLog, SilenceWatch
 from hydromon.store.ranges_dir import RangesDir
+from hydromon.store.state_dir import StateDir
 from monitor.pipeline import warm_up
 
-__all__ = ["RigKeys", "log_rig_warning", "run_monitor", "rig_pattern"]
+__all__ = ["log_rig_warning", "rig_pattern", "run_monitor"]
 
 log = logging.getLogger(__name__)
 
@@ -39,83 +43,6 @@ def log_rig_warning(rig_id: str, message: str) -> None:
     """``MonitorCore(on_warning=...)`` for the nodes: one log line per warning (they come once
     per rig and restart, so they need no rate limit)."""
     log.warning("rig %s: %s", rig_id, message)
-
-
-class RigKeys:
-    """The sample and health keys of the monitor's rigs, declared on its session
-    (``session.declare_keyexpr``), so that zenoh routes them from a cache.
-
-    zenoh keeps a routing-table resource, with its routes computed once, for each declared key
-    expression; a message on an undeclared key has its route computed afresh, matched against
-    every resource of the table. Measured (loopback, 500 rigs at 100 Hz, a bare subscriber that
-    also puts one health message per 10 samples): the subscriber's receive thread 2.9-3.4 ->
-    1.2-2.2 us a sample, its main thread 1.9-2.3 -> 1.4-2.1 us.
-
-    The catch: once N keys are declared, a message on any *other* key is matched against all of
-    them (about 0.15 us each: a health put of an undeclared key with 500 sample keys declared
-    cost 76 us). So the health keys are declared with the sample keys, and the declarations
-    are all dropped for good (``off``) when the monitor holds more than ``max_rigs`` rigs (each
-    declaration also costs a walk over the others: 0.06 s for the first 1000 rigs, 12 s for
-    10,000) or when messages on undeclared keys come at more than ``max_rejects`` per
-    :meth:`check` (rejected ones: bad keys, rigs beyond ``--max-rigs``, rigs whose every sample
-    is refused). Call :meth:`sync` after each ``MonitorCore.process`` (before publishing its
-    health), :meth:`forget` with the rigs ``MonitorCore.forget`` forgot, :meth:`check` now and
-    then, :meth:`close` at the end.
-    """
-
-    def __init__(self, session, namespace: str, max_rigs: int = 2000, max_rejects: int = 100):
-        self.session, self.namespace = session, namespace
-        self.max_rigs, self.max_rejects = int(max_rigs), int(max_rejects)
-        self.rigs: dict[str, tuple] = {}        # rig id -> (sample KeyExpr, health KeyExpr)
-        self.health: dict[str, object] = {}     # health key -> its declared KeyExpr
-        self.off = False
-        self._rejected = None
-
-    def sync(self, core: MonitorCore) -> None:
-        """Declare the keys of the core's rigs that are new since the last call."""
-        if self.off or len(core.rigs) == len(self.rigs):
-            return
-        if len(core.rigs) > self.max_rigs:
-            self.close(f"more than {self.max_rigs} rigs")
-            return
-        declare = self.session.declare_keyexpr
-        for rig_id in core.rigs:
-            if rig_id not in self.rigs:
-                hkey = health_key(rig_id, self.namespace)
-                kes = self.rigs[rig_id] = (declare(sample_key(rig_id, self.namespace)), declare(hkey))
-                self.health[hkey] = kes[1]
-
-    def forget(self, rig_ids) -> None:
-        for rig_id in rig_ids:
-            kes = self.rigs.pop(rig_id, None)
-            if kes is not None:
-                del self.health[health_key(rig_id, self.namespace)]
-                self._undeclare(kes)
-
-    def check(self, core: MonitorCore) -> None:
-        """Give up the declarations if rejected messages came at more than ``max_rejects``
-        since the last call."""
-        n = core.counters.rejected_total
-        if self._rejected is not None and n - self._rejected > self.max_rejects and not self.off:
-            self.close(f"{n - self._rejected} messages rejected in a check interval")
-        self._rejected = n
-
-    def close(self, why: str | None = None) -> None:
-        """Undeclare every key (and declare no more if ``why`` is given)."""
-        if why is not None:
-            self.off = True
-            if self.rigs:
-                log.info("monitor: rig keys no longer declared on the session (%s)", why)
-        rigs, self.rigs, self.health = self.rigs, {}, {}
-        for kes in rigs.values():
-            self._undeclare(kes)
-
-    def _undeclare(self, kes) -> None:
-        for ke in kes:
-            try:
-                self.session.undeclare(ke)
-            except zenoh.ZError:  # the session is closed
-                pass
 
 
 _RIG_PATTERN_RE = re.compile(r"\*|\$\*|[A-Za-z0-9_$*-]{1,64}")
@@ -142,7 +69,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 config_query_s: float = 5.0, clock=time.monotonic, rigs: str = "*",
                 stale_after_s: float | None = 2.0, forget_after_s: float | None = None,
                 behind_after_s: float = 2.0, ranges_dir: RangesDir | None = None,
-                ranges_scan_s: float = 2.0) -> MonitorCore:
+                ranges_scan_s: float = 2.0, state_dir: StateDir | None = None, checkpoint_s: float = 2.0,
+                group: str | None = None, standby: bool = False) -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
 
     Parameters
@@ -185,6 +113,16 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         [s]: a new or changed file grades its rig from then on (logged); a bad one is refused
         (logged) and the rig keeps the ranges it had; a removed one leaves the rig to the
         default ranges, if they were made for it.
+    state_dir : StateDir or None
+        Where the node keeps its checkpoint (``hydromon.engine.checkpoint``): restored at start
+        (before the first sample; a checkpoint it cannot use is refused whole, logged), written
+        every ``checkpoint_s`` [s] while the node publishes (in a background thread; the state
+        is copied between two batches) and at stop.
+    group, standby : str or None, bool
+        Join failover group ``group`` (``hydromon.bus.failover``): the node takes and grades
+        every sample but publishes health and events, answers health queries and writes
+        checkpoints only while it holds the group's oldest claim; ``standby`` starts it
+        waiting for a primary. None: the node always publishes.
 
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
@@ -192,7 +130,14 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     core = core or MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=log_rig_warning)
     if core.namespace != namespace:
         raise ValueError(f"core namespace {core.namespace!r} != {namespace!r}")
+    if state_dir is not None:
+        restore_from(core, state_dir)
     warm_up()  # compile before subscribing: the first samples must not queue behind the compiler
+    if group is not None and any(r.ok is not None for r in session.liveliness().get(
+            liveliness_key(node_name, namespace), timeout=1.0)):
+        # two nodes under one name share one token: one of them dying would go unseen
+        raise ValueError(f"a monitor named {node_name!r} is already running on {namespace}: give each monitor "
+                         "its own --node")
     stop = stop_event if stop_event is not None else threading.Event()
     deadline = None if duration is None else clock() + duration
     watch = None if stale_after_s is None and forget_after_s is None else SilenceWatch(stale_after_s, forget_after_s)
@@ -200,7 +145,15 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     backlog = BacklogWatch(max_batch, behind_after_s)  # checks its arguments before anything is declared
     flush_log = getattr(core.on_reject, "flush", None)  # a RateLimitedLog's due counts
 
+    failover: Failover | None = None
+    saver = Saver(state_dir) if state_dir is not None else None
+
+    def publishing() -> bool:
+        return failover is None or failover.active
+
     def answer(query: zenoh.Query) -> None:
+        if not publishing():  # a standby's verdicts are not the rigs' verdicts
+            return
         qk = query.key_expr
         for rig_id, payload in list(core.latest.items()):
             key = health_key(rig_id, namespace)
@@ -256,6 +209,10 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         rescan_ranges()  # before the first sample: a rig is graded on its own ranges from its start
     # last: a peer that sees the token has seen the subscribers declared before it
     token = session.liveliness().declare_token(liveliness_key(node_name, namespace))
+    if group is not None:
+        failover = Failover(session, namespace, group, node_name, standby=standby)
+        log.warning("monitor %s: %s", node_name, failover.poll() or
+                    f"monitor {failover.holder()} publishes for these rigs: standing by (taking every sample)")
 
     # rigs that published their config before we came up: ask their nodes (the sim node
     # answers on <ns>/rig/*/config); replies are handled as config messages
@@ -283,8 +240,11 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         if batch:
             out = core.process(batch)
             keys.sync(core)
-            publish(out)
-            publish_events()
+            if publishing():
+                publish(out)
+                publish_events()
+            else:
+                core.take_events()  # a standby's: its grade changes are announced by the publishing node
         return len(batch)
 
     def tell(line: str | None) -> None:
@@ -295,6 +255,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     quiet.__enter__()  # left in the finally below
     next_watch = clock()
     next_scan = clock() + ranges_scan_s
+    next_save = clock() + checkpoint_s
     try:
         while True:
             started = time.perf_counter()
@@ -303,8 +264,12 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             if clock() >= next_watch:
                 now = clock()
                 if watch is not None:
-                    publish(watch.check(core, now))
-                    publish_events()
+                    stale = watch.check(core, now)
+                    if publishing():
+                        publish(stale)
+                        publish_events()
+                    else:
+                        core.take_events()
                     forgotten = core.forget(watch.forget_due(core, now))
                     keys.forget(forgotten)
                     for rig_id in forgotten:
@@ -314,6 +279,11 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 if flush_log is not None:
                     flush_log()
                 next_watch = now + watch_every
+            if failover is not None and (line := failover.poll()) is not None:
+                log.warning("monitor %s: %s", node_name, line)
+            if saver is not None and publishing() and clock() >= next_save:
+                saver.save(core)
+                next_save = clock() + checkpoint_s
             if ranges_dir is not None and clock() >= next_scan:
                 rescan_ranges()
                 next_scan = clock() + ranges_scan_s
@@ -333,6 +303,10 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     except zenoh.ZError as exc:  # the session was closed under us
         log.warning("monitor stopping: %s", exc)
     finally:
+        if saver is not None:
+            saver.close(core if publishing() else None)
+        if failover is not None:
+            failover.close()
         quiet.__exit__()
         tell(backlog.close(clock()))
         keys.close()
@@ -344,3 +318,5 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
             except zenoh.ZError:
                 pass
     return core
+
+

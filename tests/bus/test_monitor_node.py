@@ -298,7 +298,7 @@ def _core_with(rig_ids):
 
 
 def test_rig_keys_declares_each_rigs_sample_and_health_key_once_and_undeclares_them():
-    from hydromon.bus.monitor import RigKeys
+    from hydromon.bus.rig_keys import RigKeys
 
     session, core = _KeySession(), _core_with(["a", "b"])
     keys = RigKeys(session, NS)
@@ -317,7 +317,7 @@ def test_rig_keys_declares_each_rigs_sample_and_health_key_once_and_undeclares_t
 
 
 def test_rig_keys_gives_up_beyond_its_rig_limit_and_on_a_flood_of_rejects():
-    from hydromon.bus.monitor import RigKeys
+    from hydromon.bus.rig_keys import RigKeys
 
     session, core = _KeySession(), _core_with(["a", "b", "c"])
     keys = RigKeys(session, NS, max_rigs=2)

@@ -87,7 +87,7 @@ def test_monitor_ranges_option_chooses_what_the_valve_is_graded_on(monkeypatch, 
     assert "K_sv_omega_sv2" in Ranges.paper().params and "K_sv" not in Ranges.paper().params
     custom = tmp_path / "ranges.json"  # a file: two of the paper's parameters only
     paper = Ranges.paper()
-    Ranges(params={k: paper.params[k] for k in ("f_c", "C_ip")}, source="test").save(custom)
+    Ranges(params={k: paper.params[k] for k in ("f_c", "C_ip")}, rig=RigConfig(), source="test").save(custom)
 
     graded = {}
     for label, extra in (("none", []), ("default", ["--ranges", "default"]), ("paper", ["--ranges", "paper"]),

@@ -41,6 +41,19 @@ def add_arguments(parser) -> None:
                         help="a directory of per-rig ranges files <rig-id>.json (hydromon commission writes them): "
                              "each grades its rig, reloaded when it changes (logged); a bad file is refused and "
                              "the rig keeps the ranges it had; rigs without a file take --ranges if made for them")
+    parser.add_argument("--state-dir", default=None, metavar="DIR",
+                        help="keep a checkpoint of every rig's state in DIR (written every --checkpoint-every "
+                             "seconds and at stop, atomically) and resume from it at start: a restarted monitor "
+                             "grades on at once, with what it had learnt; a primary and its standbys share DIR")
+    parser.add_argument("--checkpoint-every", type=float, default=2.0, metavar="S",
+                        help="seconds between checkpoints with --state-dir (default 2)")
+    parser.add_argument("--standby", action="store_true",
+                        help="start as a standby: take every sample, publish nothing while another monitor of "
+                             "the group publishes, take over within a poll of its death (default: publish "
+                             "unless another monitor of the group already does)")
+    parser.add_argument("--group", default=None, metavar="NAME",
+                        help="failover group: of the monitors of one group only the one that claimed first "
+                             "publishes (default: one group per --rigs pattern)")
     add_memory_argument(parser)
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads for the estimators when many samples arrive at once (rigs split "
@@ -54,7 +67,10 @@ def run(args) -> int:
     from hydromon.engine.core import MonitorCore
     from hydromon.engine.watches import RateLimitedLog
     from hydromon.bus.monitor import log_rig_warning, rig_pattern, run_monitor
+    from hydromon.bus.failover import group_name
+    from hydromon.contract import valid_rig_id
     from hydromon.store.ranges_dir import RangesDir
+    from hydromon.store.state_dir import StateDir
 
     # every option is checked here, before the bus opens and the banner is printed
     checks.positive("--duration", args.duration)
@@ -74,6 +90,11 @@ def run(args) -> int:
         raise ValueError(f"--rigs: {exc}") from None
     ranges = ranges_from_args(args)  # a bad file fails here, before the bus
     ranges_dir = RangesDir(args.ranges_dir) if args.ranges_dir is not None else None
+    checks.positive("--checkpoint-every", args.checkpoint_every)
+    state_dir = StateDir(args.state_dir) if args.state_dir is not None else None
+    group = args.group if args.group is not None else group_name(args.rigs)
+    if not valid_rig_id(group):
+        raise ValueError(f"--group {group!r}: 1-64 chars of [A-Za-z0-9_-]")
     options = options_from_args(args, MonitorCore.SAMPLE_RATE)
     # the epoch: this start of the node, later than any earlier start of it (ms of the wall clock)
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
@@ -87,7 +108,8 @@ def run(args) -> int:
                   file=sys.stderr, flush=True)
             run_monitor(session, namespace=args.namespace, node_name=args.node, stop_event=stop,
                         duration=args.duration, core=core, rigs=args.rigs, stale_after_s=args.stale_after,
-                        forget_after_s=args.forget_after, ranges_dir=ranges_dir)
+                        forget_after_s=args.forget_after, ranges_dir=ranges_dir, state_dir=state_dir,
+                        checkpoint_s=args.checkpoint_every, group=group, standby=args.standby)
     finally:
         restore_signals()
     c = core.counters
