@@ -24,6 +24,7 @@ import zenoh
 
 from hydromon.bus.checkpoints import Saver, restore_from
 from hydromon.bus.failover import Failover
+from hydromon.bus.live_commission import LiveCommissioning
 from hydromon.bus.quietgc import QuietGC
 from hydromon.bus.rig_keys import RigKeys
 from hydromon.bus.session import JSON
@@ -70,7 +71,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 stale_after_s: float | None = 2.0, forget_after_s: float | None = None,
                 behind_after_s: float = 2.0, ranges_dir: RangesDir | None = None,
                 ranges_scan_s: float = 2.0, state_dir: StateDir | None = None, checkpoint_s: float = 2.0,
-                group: str | None = None, standby: bool = False) -> MonitorCore:
+                group: str | None = None, standby: bool = False, commission_new_s: float | None = None,
+                commission_runs: int = 60) -> MonitorCore:
     """Run the monitor node on an open session until ``stop_event`` is set or ``duration`` [s].
 
     Parameters
@@ -123,6 +125,10 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         every sample but publishes health and events, answers health queries and writes
         checkpoints only while it holds the group's oldest claim; ``standby`` starts it
         waiting for a primary. None: the node always publishes.
+    commission_new_s : float or None
+        Commission a rig the node has no ranges for from its first this many seconds
+        (``hydromon.bus.live_commission``, with ``commission_runs`` twin runs) and write its
+        ranges into ``ranges_dir``; its health says ``commissioning`` meanwhile. None: never.
 
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
@@ -146,6 +152,9 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     flush_log = getattr(core.on_reject, "flush", None)  # a RateLimitedLog's due counts
 
     failover: Failover | None = None
+    if commission_new_s is not None and ranges_dir is None:
+        raise ValueError("commissioning new rigs writes their ranges into the ranges directory: give one")
+    live = None
     saver = Saver(state_dir) if state_dir is not None else None
 
     def publishing() -> bool:
@@ -184,6 +193,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 log.warning("rig %s: graded on %s from now on", ch.rig_id, ch.path)
 
     keys = RigKeys(session, namespace)
+    if commission_new_s is not None:
+        live = LiveCommissioning(ranges_dir, commission_new_s, commission_runs, on_written=rescan_ranges)
 
     def publish(items) -> None:
         # session.put, not a declared publisher per rig: declared publishers add resources to the
@@ -240,6 +251,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         if batch:
             out = core.process(batch)
             keys.sync(core)
+            if live is not None and len(core.rigs) > live.seen:
+                live.check(core)  # a new rig's first verdict already says commissioning
             if publishing():
                 publish(out)
                 publish_events()
@@ -276,6 +289,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                         log.warning("rig %s: forgotten after %g s without a sample (its next sample starts "
                                     "it afresh)", rig_id, forget_after_s)
                 keys.check(core)
+                if live is not None:
+                    live.check(core)
                 if flush_log is not None:
                     flush_log()
                 next_watch = now + watch_every

@@ -152,6 +152,7 @@ class MonitorCore(RegularBatch):
         self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
         self._cur = 0  # index in the current process() call of the message being taken one by one
         self._held: dict[int, SeqState] = {}  # by row: a rig's sequence state while it holds samples back
+        self._taps: dict[int, list[np.ndarray]] = {}  # by row: the samples taken, kept for commissioning
         # sequence state per row (arrays, so a batch of regular samples is checked at once)
         for name, value, dtype in _ROW_STATE:
             setattr(self, name, np.full(16, value, dtype=dtype))
@@ -181,6 +182,11 @@ class MonitorCore(RegularBatch):
         else:
             rows = np.concatenate([c[0] for c in self._chunks])
             vals = np.concatenate([c[1] for c in self._chunks])
+        if self._taps:
+            for r, kept in self._taps.items():
+                mine = rows == r
+                if mine.any():
+                    kept.append(vals[mine])
         ev = self.fleet.update(rows, vals[:, 1:])
         if len(ev):
             self._health(ev, vals[:, 0], out)
@@ -218,6 +224,18 @@ class MonitorCore(RegularBatch):
         """The grade and status changes announced since the last call, as ``(event key, payload)``
         in order (``hydromon.engine.events``); the node publishes them after the health."""
         return self.verdicts.take_events()
+
+    def tap(self, rig_id: str) -> None:
+        """Keep every sample of ``rig_id`` the estimators take from now on (for :meth:`tapped`)."""
+        self._taps.setdefault(self.rigs[rig_id].row, [])
+
+    def tapped(self, rig_id: str, take: bool = False) -> np.ndarray:
+        """The samples of ``rig_id`` kept since :meth:`tap`, ``(n, 6)``: t [s], ug [V], x1 [m],
+        x3 [Pa], x4 [Pa], x5 [m] (the valve drive taken in), in the order taken; ``take``: stop
+        keeping them."""
+        rig = self.rigs.get(rig_id)
+        kept = (self._taps.pop(rig.row, []) if take else self._taps.get(rig.row, [])) if rig else []
+        return np.concatenate(kept) if kept else np.zeros((0, 6))
 
     def ranges_changed(self, rig_id: str) -> None:
         """Look up again which ranges grade ``rig_id`` (after its ranges in the book changed)."""
@@ -302,6 +320,7 @@ class MonitorCore(RegularBatch):
             self.fleet.remove_rig(rig_id)
             self.verdicts.forget(r)
             self._held.pop(r, None)
+            self._taps.pop(r, None)
             self.latest.pop(rig_id, None)
             self._known.pop(sample_key(rig_id, self.namespace), None)
             for name, value, _ in _ROW_STATE:

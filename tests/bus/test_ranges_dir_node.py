@@ -84,3 +84,45 @@ def test_a_rig_is_graded_only_once_its_own_ranges_file_appears_and_keeps_them_ov
             sim.join(30)
     refusals = [r for r in caplog.records if "refused" in r.getMessage()]
     assert len(refusals) == 1 and "press-7.json" in refusals[0].getMessage()
+
+
+@pytest.mark.network
+@pytest.mark.timeout(180)
+def test_a_new_rig_is_commissioned_live_from_its_first_seconds_and_then_graded(tmp_path, caplog):
+    caplog.set_level(logging.WARNING, logger="hydromon.bus.monitor")
+    spec = FleetSpec(rigs=[RigSpec(id="press-8", base=BASE, config=CONFIG, noise="realistic")])  # healthy
+    seen: list[dict] = []
+    with listening_session() as (mon_s, ep), open_session("peer", connect=[ep]) as sim_s, \
+            open_session("peer", connect=[ep]) as obs_s:
+        sub = obs_s.declare_subscriber("hydro/rig/press-8/health", zenoh.handlers.FifoChannel(100_000))
+
+        def latest():
+            while (m := sub.try_recv()) is not None:
+                seen.append(orjson.loads(m.payload.to_bytes()))
+            return seen[-1] if seen else None
+
+        stop = threading.Event()
+        mon = threading.Thread(target=run_monitor, args=(mon_s,), daemon=True, kwargs={
+            "stop_event": stop, "node_name": "m", "stale_after_s": None, "ranges_dir": RangesDir(tmp_path),
+            "ranges_scan_s": 0.2, "commission_new_s": 15.0, "commission_runs": 10})
+        mon.start()
+        sim = threading.Thread(target=run_sim, args=(sim_s, spec), kwargs={"rate": 3, "stop_event": stop}, daemon=True)
+        try:
+            wait_for(lambda: any(r.ok is not None for r in sim_s.liveliness().get("hydro/monitor/m", timeout=1.0)),
+                     30, "the monitor")
+            sim.start()
+            wait_for(lambda: (h := latest()) is not None and h.get("ranges") is not None and h["status"] == "ok",
+                     120, "a verdict on the rig's commissioned ranges")
+        finally:
+            stop.set()
+            mon.join(30)
+            sim.join(30)
+    statuses = [h["status"] for h in seen]
+    first_ok = statuses.index("ok")
+    assert set(statuses[:first_ok]) == {"commissioning"}  # said from its first verdict until graded
+    assert seen[first_ok - 1]["seq"] >= 1500  # its first 15 s went into the commissioning
+    assert all(h["grade"] == "health" for h in seen[first_ok:])
+    assert (tmp_path / "press-8.json").exists() and seen[-1]["ranges"].startswith("press-8.json")
+    text = caplog.text
+    assert "rig press-8: no ranges for it: COMMISSIONING it from its first 15 s" in text
+    assert "rig press-8: COMMISSIONED from its first 15 s: ranges written to" in text

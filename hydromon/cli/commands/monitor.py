@@ -41,6 +41,11 @@ def add_arguments(parser) -> None:
                         help="a directory of per-rig ranges files <rig-id>.json (hydromon commission writes them): "
                              "each grades its rig, reloaded when it changes (logged); a bad file is refused and "
                              "the rig keeps the ranges it had; rigs without a file take --ranges if made for them")
+    parser.add_argument("--commission-new-rigs", type=float, default=None, metavar="S",
+                        help="commission a rig that has no ranges from its first S seconds (10 or more) and write "
+                             "its ranges into --ranges-dir; its health says commissioning meanwhile. It takes the "
+                             "rig as new: a rig already worn would be graded relative to its worn state "
+                             "(default: off)")
     parser.add_argument("--state-dir", default=None, metavar="DIR",
                         help="keep a checkpoint of every rig's state in DIR (written every --checkpoint-every "
                              "seconds and at stop, atomically) and resume from it at start: a restarted monitor "
@@ -91,6 +96,12 @@ def run(args) -> int:
     ranges = ranges_from_args(args)  # a bad file fails here, before the bus
     ranges_dir = RangesDir(args.ranges_dir) if args.ranges_dir is not None else None
     checks.positive("--checkpoint-every", args.checkpoint_every)
+    if args.commission_new_rigs is not None:
+        from monitor.commission import MIN_SECONDS
+
+        if ranges_dir is None:
+            raise ValueError("--commission-new-rigs writes each rig's ranges into --ranges-dir: give one")
+        checks.at_least("--commission-new-rigs", args.commission_new_rigs, MIN_SECONDS)
     state_dir = StateDir(args.state_dir) if args.state_dir is not None else None
     group = args.group if args.group is not None else group_name(args.rigs)
     if not valid_rig_id(group):
@@ -109,7 +120,8 @@ def run(args) -> int:
             run_monitor(session, namespace=args.namespace, node_name=args.node, stop_event=stop,
                         duration=args.duration, core=core, rigs=args.rigs, stale_after_s=args.stale_after,
                         forget_after_s=args.forget_after, ranges_dir=ranges_dir, state_dir=state_dir,
-                        checkpoint_s=args.checkpoint_every, group=group, standby=args.standby)
+                        checkpoint_s=args.checkpoint_every, group=group, standby=args.standby,
+                        commission_new_s=args.commission_new_rigs)
     finally:
         restore_signals()
     c = core.counters
