@@ -37,7 +37,8 @@ from plant_sim.simulate import simulate_fleet
 from .audit.freerun import plant_from_params
 from .calibrate import identify_fleet, severities
 from .ident_options import IdentOptions
-from .pipeline import Assessment, Pipeline
+from .evaluations import Assessment
+from .pipeline import Pipeline
 from .ranges import Estimate, ParamRange, Ranges
 from .refine import sensor_noise
 from .relative import REFERENCE_HEALTHY, relative_ranges

@@ -75,7 +75,7 @@ class Arrivals(NamedTuple):
 
 
 class EventArrays(NamedTuple):
-    """Evaluation events, one row per event, owned by the caller (fields as ``monitor.pipeline.Events``)."""
+    """Evaluation events, one row per event, owned by the caller (fields as ``monitor.evaluations.Events``)."""
 
     rig: np.ndarray
     """(cap,) int64 the rig's row."""

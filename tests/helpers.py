@@ -8,7 +8,7 @@ import time
 import numpy as np
 import orjson
 
-from monitor.pipeline import eval_phase
+from monitor.evaluations import eval_phase
 
 
 def wait_for(pred, timeout_s: float, what: str, alive=None, poll_s: float = 0.02) -> None:
@@ -42,7 +42,7 @@ def taken_first(monkeypatch, taken: str) -> None:
 
 
 def health_seqs(rig_id: str, n: int, eval_every: int = 10, first: int = 0) -> list[int]:
-    """Seqs of the samples after which the monitor (staggered, ``monitor.pipeline.eval_phase``)
+    """Seqs of the samples after which the monitor (staggered, ``monitor.evaluations.eval_phase``)
     reports rig ``rig_id`` when it takes samples first .. n-1 with no restart."""
     ph = eval_phase(rig_id, eval_every)
     return [s for s in range(first, n) if (s - first + 1 + ph) % eval_every == 0]

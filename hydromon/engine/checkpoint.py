@@ -36,7 +36,7 @@ __all__ = ["FORMAT", "Checkpoint", "CheckpointRefused", "decode", "encode", "res
 FORMAT = 1
 """Version of the checkpoint file itself (its arrays and JSON fields)."""
 
-# the core's per-row sequence state saved with each rig (``hydromon.engine.core._ROW_STATE``);
+# the core's per-row sequence state saved with each rig (``hydromon.engine.rig_table.ROW_STATE``);
 # ``_holding`` is not: samples held back are not saved, they are part of the gap
 _ROW_FIELDS = ("_last", "_n", "_gap", "_bad", "_clamp_warned", "_back_n", "_back_seq", "_back_warned")
 

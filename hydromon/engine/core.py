@@ -27,26 +27,18 @@ was evaluated; ``level`` is null and ``grade`` ``"unknown"`` when the level is -
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from operator import attrgetter, itemgetter
 
 import numpy as np
 import orjson
 
-from hydromon.contract import (
-    DEFAULT_NAMESPACE,
-    RESTART_RUN,
-    RigConfig,
-    check_namespace,
-    health_key,
-    sample_key,
-    split_rig_key,
-)
+from hydromon.contract import DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, check_namespace, split_rig_key
 from hydromon.engine.batch import RegularBatch
 from hydromon.engine.counters import MonitorCounters
 from hydromon.engine.ranges_book import RangesBook
+from hydromon.engine.rig_table import ROW_STATE, Rig, RigTable
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, RESTART, SeqState, sequence_push
-from hydromon.engine.validate import Rejected, decode_json, parse_config, parse_sample
+from hydromon.engine.validate import Rejected, decode_json, parse_sample
 from hydromon.engine.verdicts import Verdicts
 from monitor.drive import command_for_drive
 from monitor.pipeline import Fleet
@@ -58,32 +50,12 @@ X1_CLAMPED_WARNING = ("x1 went beyond a chamber's end: the rig constants (A1, A2
                       "sign or unit are wrong; its chamber parameters are not to be trusted")
 
 
-@dataclass(eq=False)  # identity: `None in rigs` must not call a field-wise __eq__ per rig
-class _Rig:
-    row: int
-    config: RigConfig | None
-
-
-# per-row sequence state of MonitorCore: (attribute, value of a row with no rig yet, dtype); one
-# table for creating, growing and (after MonitorCore.forget) resetting the rows
-_ROW_STATE = (
-    ("_last", -1, np.int64),           # last seq taken; -1 = none yet
-    ("_n", 0, np.int64),               # samples since the estimates (re)started
-    ("_gap", -1, np.int64),            # samples after the last gap; -1 = none pending
-    ("_bad", False, np.bool_),         # a sample-key message rejected since the last health
-    ("_clamp_warned", False, np.bool_),  # warned of its x1 beyond a chamber's end
-    ("_back_n", 0, np.int64),          # samples in a row below the last seq (a restart?)
-    ("_back_seq", -1, np.int64),       # the last of them
-    ("_back_warned", False, np.bool_),  # warned of a seq going back
-    ("_holding", False, np.bool_),     # samples held back by the sequence rule (in _held)
-)
-
 _ROW = attrgetter("row")
 _SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
 
 
-class MonitorCore(RegularBatch):
+class MonitorCore(RegularBatch, RigTable):
     """The monitor without the bus: ``process(messages) -> [(health_key, payload)]``.
 
     Parameters
@@ -95,7 +67,7 @@ class MonitorCore(RegularBatch):
     eval_every : int
         A health message every this many samples of a rig (10 at 100 Hz = 10 Hz).
     stagger : bool
-        Spread the rigs' health messages over the window (``monitor.pipeline.eval_phase``: rig
+        Spread the rigs' health messages over the window (``monitor.evaluations.eval_phase``: rig
         ``id`` reports after the samples where its count + phase is a multiple of eval_every)
         so a fleet's grading and publishing load is even from tick to tick (measured at 1000
         rigs: all evaluating on one tick cost the monitor ~30 ms in a burst every 100 ms).
@@ -142,19 +114,19 @@ class MonitorCore(RegularBatch):
         self.on_reject = on_reject
         self.on_warning = on_warning
         self.counters = MonitorCounters()
-        self.rigs: dict[str, _Rig] = {}
+        self.rigs: dict[str, Rig] = {}
         self.configs: dict[str, RigConfig] = {}   # latest valid config per rig id
         self.latest: dict[str, bytes] = {}        # latest health payload per rig id
         self.verdicts = Verdicts(self.fleet, self.namespace, book, node, epoch, on_warning)
         self._health_keys: list[str] = []          # per row
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
-        self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
+        self._known: dict[str, Rig] = {}  # sample key -> its rig, for keys already validated
         self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
         self._cur = 0  # index in the current process() call of the message being taken one by one
         self._held: dict[int, SeqState] = {}  # by row: a rig's sequence state while it holds samples back
         self._taps: dict[int, list[np.ndarray]] = {}  # by row: the samples taken, kept for commissioning
         # sequence state per row (arrays, so a batch of regular samples is checked at once)
-        for name, value, dtype in _ROW_STATE:
+        for name, value, dtype in ROW_STATE:
             setattr(self, name, np.full(16, value, dtype=dtype))
         self._clear()
 
@@ -225,29 +197,6 @@ class MonitorCore(RegularBatch):
         in order (``hydromon.engine.events``); the node publishes them after the health."""
         return self.verdicts.take_events()
 
-    def tap(self, rig_id: str) -> None:
-        """Keep every sample of ``rig_id`` the estimators take from now on (for :meth:`tapped`)."""
-        self._taps.setdefault(self.rigs[rig_id].row, [])
-
-    def tapped(self, rig_id: str, take: bool = False) -> np.ndarray:
-        """The samples of ``rig_id`` kept since :meth:`tap`, ``(n, 6)``: t [s], ug [V], x1 [m],
-        x3 [Pa], x4 [Pa], x5 [m] (the valve drive taken in), in the order taken; ``take``: stop
-        keeping them."""
-        rig = self.rigs.get(rig_id)
-        kept = (self._taps.pop(rig.row, []) if take else self._taps.get(rig.row, [])) if rig else []
-        return np.concatenate(kept) if kept else np.zeros((0, 6))
-
-    def ranges_changed(self, rig_id: str) -> None:
-        """Look up again which ranges grade ``rig_id`` (after its ranges in the book changed)."""
-        rig = self.rigs.get(rig_id)
-        if rig is not None:
-            self.verdicts.apply(rig.row, rig.config)
-
-    def ranges_of(self, rig_id: str):
-        """``(Ranges, tag)`` the rig is graded on; ``(None, None)`` when none (or an unknown rig)."""
-        rig = self.rigs.get(rig_id)
-        return (None, None) if rig is None else self.verdicts.ranges_of(rig.row)
-
     def last_seqs(self) -> np.ndarray:
         """The last seq taken of each rig, by row (-1: none yet); a copy."""
         return self._last[:len(self.fleet.ids)].copy()
@@ -274,107 +223,12 @@ class MonitorCore(RegularBatch):
         return out
 
     # -- input ----------------------------------------------------------------------------
-    def _reject(self, reason: str, key: str, detail: str, rig: _Rig | None = None) -> None:
+    def _reject(self, reason: str, key: str, detail: str, rig: Rig | None = None) -> None:
         self.counters.rejected[reason] += 1
         if rig is not None:
             self._bad[rig.row] = True
         if self.on_reject is not None:
             self.on_reject(reason, key, detail)
-
-    def _full(self) -> str:
-        return (f"this monitor holds its limit of {self.max_rigs} rigs (--max-rigs); a new rig id is refused "
-                "(shard a larger plant with --rigs PATTERN)")
-
-    def _rig(self, rig_id: str) -> _Rig:
-        rig = self.rigs.get(rig_id)
-        if rig is None:
-            config = self.configs.get(rig_id)
-            row = self.fleet.add_rig(rig_id, config)  # a forgotten rig's row, or a new one
-            self.verdicts.announcer.reset(row)
-            if row >= len(self._last):
-                grow = len(self._last)
-                for name, value, dtype in _ROW_STATE:
-                    setattr(self, name, np.concatenate([getattr(self, name), np.full(grow, value, dtype=dtype)]))
-            rig = self.rigs[rig_id] = _Rig(row, config)
-            if row < len(self._health_keys):
-                self._health_keys[row] = health_key(rig_id, self.namespace)
-            else:
-                self._health_keys.append(health_key(rig_id, self.namespace))
-            self._forgotten.pop(rig_id, None)  # back: its kept config is in use again
-            self.verdicts.apply(row, config)
-        return rig
-
-    def forget(self, rig_ids: Iterable[str]) -> list[str]:
-        """Forget these rigs (silent ones: the node decides when): their estimates, latest health
-        and seq state go, and their rows are reused by the next new rigs, so a plant whose rig ids
-        come and go never reaches ``max_rigs`` with rigs long gone. A forgotten rig that comes back
-        starts afresh, as a new rig, with the config it last sent (configs are published once and
-        on change); the configs of forgotten rigs are kept up to ``max_rigs`` in all, the oldest
-        dropped first. Call between :meth:`process` calls. Returns the ids forgotten."""
-        done = []
-        for rig_id in rig_ids:
-            rig = self.rigs.pop(rig_id, None)
-            if rig is None:
-                continue
-            r = rig.row
-            self.fleet.remove_rig(rig_id)
-            self.verdicts.forget(r)
-            self._held.pop(r, None)
-            self._taps.pop(r, None)
-            self.latest.pop(rig_id, None)
-            self._known.pop(sample_key(rig_id, self.namespace), None)
-            for name, value, _ in _ROW_STATE:
-                getattr(self, name)[r] = value
-            if rig_id in self.configs:
-                self._forgotten[rig_id] = None
-            done.append(rig_id)
-        self.counters.forgotten += len(done)
-        return done
-
-    def _config_room(self) -> bool:
-        """Room for one more rig's config: the oldest config of a forgotten rig makes room."""
-        if len(self.configs) < self.max_rigs:
-            return True
-        if self._forgotten:
-            oldest = next(iter(self._forgotten))
-            del self._forgotten[oldest], self.configs[oldest]
-            return True
-        return False
-
-    def _on_config(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
-        try:
-            config = parse_config(decode_json(payload))
-            if abs(config.sample_rate - self.fleet.sample_rate) > 1e-9:
-                raise Rejected("bad-value", f"sample_rate {config.sample_rate} Hz; this monitor runs "
-                                            f"at {self.fleet.sample_rate} Hz")
-        except Rejected as exc:
-            # a rig being graded: its next health says bad-input (it is still graded on the
-            # constants it had, so its health must not say ok as if nothing were wrong)
-            self._reject(exc.reason, key, exc.detail, self.rigs.get(rig_id))
-            return
-        if rig_id not in self.configs and rig_id not in self.rigs and \
-                (len(self.rigs) >= self.max_rigs or not self._config_room()):
-            self._reject("too-many-rigs", key, self._full())
-            return
-        self.counters.configs += 1
-        self.configs[rig_id] = config
-        rig = self.rigs.get(rig_id)
-        if rig is None or rig.config == config or (rig.config is None and config == RigConfig()):
-            if rig is not None:
-                rig.config = config
-            return
-        if self.on_warning is not None:  # a restart of the estimates: the operator should see why
-            old = (rig.config or RigConfig()).model_dump()
-            changed = [k for k, v in config.model_dump().items() if old.get(k) != v]
-            self.on_warning(rig_id, f"config changed ({', '.join(changed)}): its estimates restart with the "
-                                    "new constants (a grade again after about 3 s of samples)")
-        self._flush(out)  # the samples before the change belong to the old constants
-        self.fleet.set_config(rig.row, config)
-        self._restarted(rig.row)
-        rig.config = config
-        self.verdicts.apply(rig.row, config)  # ranges made for the old constants do not fit the new
-        self._n[rig.row], self._gap[rig.row] = 0, -1
-        self.counters.config_changes += 1
 
     def _on_sample(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
         try:

@@ -14,7 +14,8 @@ from hydromon.engine.ranges_book import COMMISSION_HINT
 from hydromon.engine.status import health_status
 from monitor.grading import Ranges
 from monitor.ident_options import IdentOptions
-from monitor.pipeline import Assessment, Events, Pipeline
+from monitor.evaluations import Assessment, Events
+from monitor.pipeline import Pipeline
 from monitor.refine import Refinement, refine
 
 __all__ = ["Evaluation", "evaluate"]

@@ -94,7 +94,7 @@ class Verdicts:
 
     # -- one batch's evaluations ----------------------------------------------------------------
     def payloads(self, ev, seqs: list, t: np.ndarray, flagged: list) -> list[bytes]:
-        """Health payloads of the fleet's evaluations ``ev`` (``monitor.pipeline.Events``), with
+        """Health payloads of the fleet's evaluations ``ev`` (``monitor.evaluations.Events``), with
         the seq and t [s] of the sample each follows and the status the core flagged for it
         (``bad-input`` for a rejected message, ``stale`` after a gap, or None); announces the
         changes (:attr:`events`)."""

@@ -94,7 +94,7 @@ def test_a_monitor_killed_and_restarted_resumes_every_rig_at_the_grade_it_had(tm
             for rig, (_, h) in first.items():
                 assert h["grade"] == before[rig]["grade"] == TRUTH[rig], (rig, h, before[rig])
                 assert h["status"] == "stale"  # the filters restart after the missed stretch
-                assert abs(h["confidence"] - before[rig]["confidence"]) <= 0.2 + 1e-9, (rig, h, before[rig])
+                assert h["confidence"] == before[rig]["confidence"], (rig, h, before[rig])
             log = procs.log("monitor2")
             assert "5 rig(s) restored from" in log, log
         procs.stop("monitor2")

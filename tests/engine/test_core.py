@@ -12,7 +12,7 @@ from hydromon.engine.core import MonitorCore
 from hydromon.engine.samples import sample_payload
 from hydromon.engine.validate import REJECT_REASONS
 from hydromon.store.fleetfile import FleetSpec, default_fleet
-from monitor.pipeline import eval_phase
+from monitor.evaluations import eval_phase
 from monitor.ranges import Ranges
 from plant_sim.degradation import TABLE4_PAPER_GRADES
 

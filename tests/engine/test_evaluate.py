@@ -420,7 +420,7 @@ def test_the_valve_note_explains_only_where_omega_is_unidentified(tmp_path, caps
 ])
 def test_status_follows_the_live_monitors_rule(converged, level, implausible, status):
     from hydromon.engine.evaluate import Evaluation
-    from monitor.pipeline import Assessment
+    from monitor.evaluations import Assessment
 
     a = Assessment(count=1000, level=level, confidence=0.0, params={}, std_errors={}, param_levels={},
                    converged=converged, implausible=implausible)

@@ -245,7 +245,7 @@ def test_pipeline_rejects_bad_samples():
 
 
 def test_staggered_fleet_evaluates_each_rig_at_its_own_phase():
-    from monitor.pipeline import eval_phase
+    from monitor.evaluations import eval_phase
 
     ids = [f"rig-{i:04d}" for i in range(40)]
     fleet = Fleet(stagger=True)

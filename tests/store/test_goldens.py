@@ -33,7 +33,7 @@ from hydromon.tools.goldens import (
     stored_health,
     true_grades,
 )
-from monitor.pipeline import eval_phase
+from monitor.evaluations import eval_phase
 
 REGENERATE = ("if the monitor's numerics changed on purpose, run `python -m hydromon.tools.goldens --update` "
               "and commit recordings/")

@@ -138,9 +138,9 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
             if t - dl >= max_p99_ms * 1e-3:
                 late[int(dl - lo)] += 1
     k_lo, k_hi = math.ceil(warm / h - 1e-9), math.ceil((warm + seconds) / h - 1e-9)
-    # the monitor staggers the rigs' evaluations (monitor.pipeline.eval_phase): count per phase
+    # the monitor staggers the rigs' evaluations (monitor.evaluations.eval_phase): count per phase
     from hydromon.store.fleetfile import spread_fleet
-    from monitor.pipeline import eval_phase
+    from monitor.evaluations import eval_phase
 
     phases = Counter(eval_phase(rid, eval_every) for rid in spread_fleet(n_rigs).ids)
     expected = sum(n * sum(1 for k in range(k_lo, k_hi) if (k + 1 + ph) % eval_every == 0)
