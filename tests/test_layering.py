@@ -160,7 +160,7 @@ def test_the_dashboards_pages_and_vendored_library_are_installed():
     served = {p for p in (root / "static").rglob("*") if p.is_file()}
     names = {p.relative_to(root / "static").as_posix() for p in served}
     assert {"fleet.html", "rig.html", "events.html", "vendor/uplot/uPlot.iife.min.js", "vendor/uplot/LICENSE",
-            "vendor/uplot/VERSION"} <= names
+            "vendor/uplot/VERSION", "foxglove/hydromon-layout.json"} <= names
     assert served <= shipped, served - shipped
 
 

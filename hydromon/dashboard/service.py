@@ -8,6 +8,7 @@ with ``hydromon.store.mcap_read``; ages are taken at the recording's end).
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,17 +34,21 @@ def default_events_path(state_dir: str | os.PathLike | None, namespace: str) -> 
 @dataclass
 class Dashboard:
     fleet: Fleet
-    web: WebServer
+    web: WebServer | None
     feed: BusFeed | None = None
+    foxglove: object | None = None  # a FoxgloveBridge
 
     @property
-    def url(self) -> str:
-        return self.web.url
+    def url(self) -> str | None:
+        return None if self.web is None else self.web.url
 
     def close(self) -> None:
+        if self.foxglove is not None:
+            self.foxglove.close()
         if self.feed is not None:
             self.feed.close()
-        self.web.close()
+        if self.web is not None:
+            self.web.close()
         self.fleet.events.close()
 
     def __enter__(self) -> Dashboard:
@@ -54,22 +59,32 @@ class Dashboard:
 
 
 def open_live(session, *, namespace: str = DEFAULT_NAMESPACE, rigs: str = "*", host: str = "127.0.0.1",
-              port: int = 8050, events_path=None, fallback_ranges=None, wait_s: float = 2.0,
-              info: dict | None = None) -> Dashboard:
-    """A dashboard following ``session`` (open; not closed here), serving on ``host:port``."""
+              port: int | None = 8050, events_path=None, fallback_ranges=None, wait_s: float = 2.0,
+              info: dict | None = None, foxglove_port: int | None = None) -> Dashboard:
+    """A dashboard following ``session`` (open; not closed here), serving on ``host:port`` (None:
+    no web server), and the Foxglove bridge on ``host:foxglove_port`` when given (0: a free port)."""
+    from hydromon.dashboard.foxglove_bridge import FoxgloveBridge
+
     check_namespace(namespace)
     fleet = Fleet(EventLog(events_path), fallback_ranges=fallback_ranges)
     feed = BusFeed(session, fleet, namespace, rigs)
-    web = WebServer(fleet, host, port, on_tick=feed.on_tick,
-                    info={"source": "bus", "namespace": namespace, "rigs": rigs, **(info or {})})
+    dash = Dashboard(fleet, None, feed)
     try:
+        if port is not None:
+            dash.web = WebServer(fleet, host, port, on_tick=feed.on_tick,
+                                 info={"source": "bus", "namespace": namespace, "rigs": rigs, **(info or {})})
         feed.start(wait_s)
-        web.start()
+        if dash.web is not None:
+            dash.web.start()
+        if foxglove_port is not None:
+            # without a web server nobody ticks the state: the bridge does, at its fleet period
+            tick = None if dash.web is not None else (lambda: feed.on_tick(fleet.tick(time.time())))
+            dash.foxglove = FoxgloveBridge(session, fleet, namespace=namespace, rigs=rigs, host=host,
+                                           port=foxglove_port, tick=tick).start()
     except BaseException:
-        feed.close()
-        web.close()
+        dash.close()
         raise
-    return Dashboard(fleet, web, feed)
+    return dash
 
 
 def open_recording(path, *, host: str = "127.0.0.1", port: int = 8050, fallback_ranges=None) -> Dashboard:

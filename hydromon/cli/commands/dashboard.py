@@ -22,6 +22,9 @@ def add_arguments(parser) -> None:
                              "and unauthenticated, so serve another address only on a trusted network)")
     parser.add_argument("--port", type=int, default=DEFAULT_PORT,
                         help=f"TCP port to serve on (default {DEFAULT_PORT}; 0 = a free one)")
+    parser.add_argument("--foxglove-port", type=int, default=None, metavar="PORT",
+                        help="also serve the Foxglove WebSocket protocol on this port of --host (0 = a free one; "
+                             "default: not served; `hydromon foxglove` serves it alone)")
     parser.add_argument("--rigs", default="*", metavar="PATTERN",
                         help="only rigs whose id matches this key-expression chunk, e.g. 'line1-*' (default all)")
     parser.add_argument("--recording", metavar="FILE",
@@ -50,8 +53,9 @@ def run(args) -> int:
 
     checks.positive("--wait", args.wait)
     checks.positive("--duration", args.duration)
-    if not 0 <= args.port <= 65535:
-        raise ValueError(f"--port {args.port!r} must be 0..65535")
+    for name, port in (("--port", args.port), ("--foxglove-port", args.foxglove_port)):
+        if port is not None and not 0 <= port <= 65535:
+            raise ValueError(f"{name} {port!r} must be 0..65535")
     check_namespace(args.namespace)
     try:
         chunk = rig_pattern(args.rigs)
@@ -61,6 +65,8 @@ def run(args) -> int:
     if args.recording:
         if args.events_file or args.state_dir:
             raise ValueError("--recording shows the recording's events; --events-file/--state-dir are for the bus")
+        if args.foxglove_port is not None:
+            raise ValueError("--foxglove-port serves the bus; open a recording in Foxglove directly (docs/dashboard.md)")
         dash = open_recording(args.recording, host=args.host, port=args.port, fallback_ranges=fallback)
         session = None
     else:
@@ -70,7 +76,8 @@ def run(args) -> int:
         session = session_from_args(args)
         try:
             dash = open_live(session, namespace=args.namespace, rigs=chunk, host=args.host, port=args.port,
-                             events_path=events, fallback_ranges=fallback, wait_s=args.wait)
+                             events_path=events, fallback_ranges=fallback, wait_s=args.wait,
+                             foxglove_port=args.foxglove_port)
         except BaseException:
             session.close()
             raise
@@ -79,6 +86,8 @@ def run(args) -> int:
     try:
         what = f"recording {args.recording}" if args.recording else f"{args.namespace}/rig/{chunk}/health"
         print(f"hydromon dashboard: {dash.url} ({what}; Ctrl-C to stop)", file=sys.stderr, flush=True)
+        if dash.foxglove is not None:
+            print(f"hydromon dashboard: Foxglove: {dash.foxglove.address}", file=sys.stderr, flush=True)
         stop.wait(args.duration)
     finally:
         restore_signals()
