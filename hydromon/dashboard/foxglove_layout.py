@@ -19,6 +19,7 @@ import re
 from pathlib import Path
 
 from hydromon.contract import DEFAULT_NAMESPACE, GRADES, PARAM_UNITS, UNKNOWN
+from hydromon.report.zones import GRADE_COLOURS
 
 __all__ = ["layout", "layout_topics", "SHIPPED", "DEFAULT_RIGS", "GRADED"]
 
@@ -26,8 +27,7 @@ SHIPPED = Path(__file__).with_name("static") / "foxglove" / "hydromon-layout.jso
 DEFAULT_RIGS = tuple(f"table4-g{i}" for i in range(1, 6))
 GRADED = ("K_sv", "f_c", "B_fv", "C_ip", "C_ep")
 """The parameters the default ranges grade (``monitor/data/default_ranges.json``)."""
-COLOURS = {"health": "#2e9d46", "sub-health": "#8cc63f", "average": "#e8b21e", "deterioration": "#f07f1d",
-           "fault": "#d7263d", UNKNOWN: "#9aa0a6"}
+COLOURS = GRADE_COLOURS
 EDGE_NAMES = ("health|sub-health", "sub-health|average", "average|deterioration", "deterioration|fault")
 
 

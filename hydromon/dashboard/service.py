@@ -93,9 +93,9 @@ def open_recording(path, *, host: str = "127.0.0.1", port: int = 8050, fallback_
     if not path.is_file():
         raise FileNotFoundError(f"--recording {str(path)!r}: no such file")
     start, end = _span(path)
-    duration = max(end - start, 1.0)
+    duration = max(end - start, 1e-3)
     fleet = Fleet(EventLog(None), fallback_ranges=fallback_ranges, live=False)
-    spacing = max(0.1, duration / 900)
+    spacing = max(1e-3, duration / 900)  # about 900 points per rig, however fast it was recorded
     fleet.history_shape = ((spacing, 1000), (max(spacing * 6, 6.0), 600))
     last = start
     for key, payload, log_ns, _pub in read_recording(path):

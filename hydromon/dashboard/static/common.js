@@ -3,8 +3,8 @@
 "use strict";
 
 const GRADES = ["health", "sub-health", "average", "deterioration", "fault"];
-const GRADE_COLOURS = {health: "#2e9d46", "sub-health": "#8cc63f", average: "#e8b21e",
-  deterioration: "#f07f1d", fault: "#d7263d", unknown: "#9aa0a6"};
+const GRADE_COLOURS = {health: "#2e7d32", "sub-health": "#9ccc65", average: "#fdd835",
+  deterioration: "#fb8c00", fault: "#c62828", unknown: "#bdbdbd"};  // as hydromon.report.zones
 
 function el(tag, cls, text) {
   const e = document.createElement(tag);

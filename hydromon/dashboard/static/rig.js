@@ -43,7 +43,7 @@ function zonesHook(p) {
       ctx.fillStyle = hexAlpha(GRADE_COLOURS[g], 0.16);
       ctx.fillRect(b.left, y0, b.width, y1 - y0);
       if (y1 - y0 > 14 * devicePixelRatio) {
-        ctx.fillStyle = hexAlpha(GRADE_COLOURS[g], 0.95);
+        ctx.fillStyle = g === "average" || g === "sub-health" ? "#5d4037" : hexAlpha(GRADE_COLOURS[g], 0.95);
         ctx.fillText(g, b.left + 4 * devicePixelRatio, y0 + 12 * devicePixelRatio);
       }
     }
