@@ -133,7 +133,8 @@ def main() -> None:
                 fleet = json.loads(r.read())
             out = {"rigs": args.rigs, "rate_hz": args.rate, "window_s": round(t1 - t0, 1),
                    "published_per_s": round((s1 - s0) / (t1 - t0)), "dashboard_cores": round((c1 - c0) / (t1 - t0), 3),
-                   "dashboard_rss_mb": round(rss_mb(proc.pid)), "rigs_on_dashboard": fleet.get("counts", {}).get("rigs"),
+                   "dashboard_rss_mb": round(rss_mb(proc.pid)),
+                   "rigs_on_dashboard": fleet.get("counts", {}).get("rigs"),
                    **page}
             print(json.dumps(out))
         finally:

@@ -9,7 +9,8 @@ the latest payload of each rig that sent one (``contract.Health``; an invalid on
 never shown), keeps it in the rig's history when a ring is due, and returns the rows that
 changed. A row says the rig's grade, confidence, status, why in words
 (``hydromon.engine.words.why_words`` with the rig's ranges when known), since when it has its
-grade, and a flag when its verdict cannot be trusted to be current: ``no monitor`` (the monitor
+grade, and a flag when its verdict cannot be trusted to be current (a verdict from an earlier
+start of the same monitor, a lower health ``epoch`` than the one held, is dropped): ``no monitor`` (the monitor
 that said it, health's ``node``, has left the bus: its liveliness token is gone; for a verdict
 without ``node``, no monitor is up at all) or ``silent`` (no verdict for :data:`SILENT_S`).
 """
@@ -83,6 +84,7 @@ class Fleet:
         self.ranges: dict[str, object] = {}
         self.monitors: dict[str, bool] = {}     # node -> up
         self.invalid = 0                         # health or event payloads that are not the contract's
+        self.superseded = 0                      # verdicts of an earlier start (epoch) of the rig's monitor
         self.history_shape: tuple | None = None  # (fine, coarse) of new rigs' histories
         self._raw: dict[str, tuple[bytes, float]] = {}
         self._raw_events: list[tuple[str, bytes, float]] = []
@@ -158,6 +160,10 @@ class Fleet:
             self.invalid += 1
             return
         prev = self.latest.get(rig)
+        if prev is not None and h["node"] is not None and h["node"] == prev["node"] and \
+                h["epoch"] is not None and prev["epoch"] is not None and h["epoch"] < prev["epoch"]:
+            self.superseded += 1  # from an earlier start of the rig's monitor: late, not current
+            return
         if prev is None or prev["grade"] != h["grade"]:
             self.since[rig] = wall
         if prev is None or prev["ranges"] != h["ranges"] or prev["node"] != h["node"]:

@@ -58,8 +58,9 @@ FLEET_SCHEMA = {
     "title": "hydromon.Fleet", "type": "object", "additionalProperties": False,
     "description": "Every rig the bridge has heard of, the ones that need attention first.",
     "properties": {"rigs": {"type": "array", "items": {"type": "object", "properties": {
-        "rig": {"type": "string"}, "grade": {"type": "string"}, "level": {"anyOf": [{"type": "integer"}, {"type": "null"}]},
-        "status": {"type": "string"}, "confidence": {"type": "number"}, "flag": {"anyOf": [{"type": "string"}, {"type": "null"}]},
+        "rig": {"type": "string"}, "grade": {"type": "string"},
+        "level": {"anyOf": [{"type": "integer"}, {"type": "null"}]}, "status": {"type": "string"},
+        "confidence": {"type": "number"}, "flag": {"anyOf": [{"type": "string"}, {"type": "null"}]},
         "why": {"type": "string"}}}},
         "counts": {"type": "object", "additionalProperties": {"type": "integer"}}},
     "required": ["rigs"],

@@ -4,7 +4,8 @@
 paper's five Table 4 rigs (one per grade); and a second ``hydromon sim`` with one rig,
 ``press-7``, healthy, then restarted as a faulty rig (its grade changes while the pages are
 open). Headless Chromium (Playwright) checks: the fleet page shows every rig at its true grade;
-press-7's change reaches the open page without a reload and the events page lists it; a rig
+press-7's change reaches the open page without a reload and the events page lists it (and
+takes an acknowledgement with a comment, kept in the event log); a rig
 page draws its parameter plots (pixels of a screenshot); killing the monitor flags its rigs
 ``no monitor`` within 2 s; no page logs a JavaScript error.
 
@@ -123,6 +124,16 @@ def test_pages_in_a_browser_against_router_sim_monitor_dashboard_processes(tmp_p
                     """() => [...document.querySelectorAll('#events tbody tr')].some(tr =>
                         tr.dataset.kind === 'grade' && tr.textContent.includes('press-7') &&
                         tr.textContent.includes('fault'))"""), 15, "press-7's grade event on the events page")
+                # acknowledged on the page, with a comment: kept in the dashboard's event log
+                row = events.page.locator("#events tbody tr[data-kind=grade]", has_text="press-7").first
+                row.get_by_role("button", name="acknowledge").click()
+                row.locator("input[name=comment]").fill("valve swapped <b>today</b>")
+                row.locator("input[name=by]").fill("anna")
+                row.get_by_role("button", name="save").click()
+                wait_for(lambda: "valve swapped <b>today</b>" in row.text_content(), 5, "the acknowledgement shown")
+                log = (tmp_path / "state" / "dashboard-events-hydro.jsonl").read_text().splitlines()
+                acks = [orjson.loads(x) for x in log if '"ack"' in x]
+                assert [(a["comment"], a["by"]) for a in acks] == [("valve swapped <b>today</b>", "anna")]
 
                 rig = Watched(ctx)
                 rig.page.goto(url + "rig/table4-g3")

@@ -33,8 +33,8 @@ def test_demo_prints_the_dashboard_url_and_the_page_works_while_it_runs(tmp_path
             rig.page.goto(url + "rig/table4-g3")
             rig.page.wait_for_selector("#graded .plot canvas", timeout=15_000)
             # the demo's monitor grades on the default ranges: the rig page draws their bands
-            assert "dashboard's --ranges" in rig.page.evaluate("() => document.querySelector('#rangesnote').textContent") \
-                or "monitor grades it" in rig.page.evaluate("() => document.querySelector('#rangesnote').textContent")
+            note = rig.page.evaluate("() => document.querySelector('#rangesnote').textContent")
+            assert "dashboard's --ranges" in note or "monitor grades it" in note, note
             for w in (fleet, rig):
                 assert w.errors == [], w.errors
         # the table printed on stdout has the URL above it

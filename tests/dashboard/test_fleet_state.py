@@ -76,6 +76,16 @@ def test_flags_no_monitor_and_silent():
     assert [r["rig"] for r in f.fleet_snapshot(4.5)["rows"]] == ["d", "a", "b", "c"]
 
 
+def test_a_verdict_of_an_earlier_start_of_the_monitor_is_not_taken():
+    f = Fleet()
+    f.put_health("a", health("fault", 4, epoch=7), 1.0)
+    f.tick(1.0)
+    f.put_health("a", health("health", 0, epoch=6), 1.1)  # late, from before the monitor's restart
+    assert f.tick(1.2).rows == [] and f.superseded == 1
+    f.put_health("a", health("health", 0, epoch=8), 1.3)
+    assert [r["grade"] for r in f.tick(1.4).rows] == ["health"]
+
+
 def test_history_keeps_a_point_a_second_and_one_every_six():
     hist = RigHistory()
     h = orjson.loads(health())

@@ -66,7 +66,8 @@ def run(args) -> int:
         if args.events_file or args.state_dir:
             raise ValueError("--recording shows the recording's events; --events-file/--state-dir are for the bus")
         if args.foxglove_port is not None:
-            raise ValueError("--foxglove-port serves the bus; open a recording in Foxglove directly (docs/dashboard.md)")
+            raise ValueError("--foxglove-port serves the bus; open a recording in Foxglove itself "
+                             "(docs/dashboard.md)")
         dash = open_recording(args.recording, host=args.host, port=args.port, fallback_ranges=fallback)
         session = None
     else:
