@@ -120,8 +120,12 @@ class FoxgloveBridge:
         self._stop = threading.Event()
         self._decls = []
         self.fleet_channel = self._channel(f"{namespace}/fleet", "fleet")
-        self.server = foxglove.start_server(name="hydromon", host=host, port=port, context=self.context,
-                                            server_listener=self)
+        try:
+            self.server = foxglove.start_server(name="hydromon", host=host, port=port, context=self.context,
+                                                server_listener=self)
+        except RuntimeError as exc:  # the SDK's FoxgloveError, e.g. the port taken: one line, as for the web server
+            reason = str(exc).removeprefix("FoxgloveError: ")
+            raise OSError(f"cannot serve Foxglove on {host}:{port}: {reason}") from None
         self.port = self.server.port
         self.address = f"ws://{host}:{self.port}"
         self._thread = threading.Thread(target=self._fleet_loop, name="foxglove-fleet", daemon=True)

@@ -44,7 +44,8 @@ function zonesHook(p) {
       ctx.fillRect(b.left, y0, b.width, y1 - y0);
       if (y1 - y0 > 14 * devicePixelRatio) {
         ctx.fillStyle = g === "average" || g === "sub-health" ? "#5d4037" : hexAlpha(GRADE_COLOURS[g], 0.95);
-        ctx.fillText(g, b.left + 4 * devicePixelRatio, y0 + 12 * devicePixelRatio);
+        ctx.textAlign = "right";  // at the right: the axis' numbers are at the left
+        ctx.fillText(g, b.left + b.width - 4 * devicePixelRatio, y0 + 12 * devicePixelRatio);
       }
     }
     if (r.baseline !== null && r.baseline !== undefined) {
@@ -82,6 +83,7 @@ function columns(p) {
 function ticks(u, vals, axis, space, incr) {
   return vals.map((v) => {
     if (v === null) return "";
+    if (v === 0) return "0";
     const a = Math.abs(v);
     if (a !== 0 && (a < 1e-3 || a >= 1e6)) return v.toExponential(Math.max(1, Math.min(6, Math.ceil(Math.log10(a / incr)))));
     const digits = Math.max(0, -Math.floor(Math.log10(incr)));
