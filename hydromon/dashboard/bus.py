@@ -4,7 +4,8 @@
   store the payload (:class:`hydromon.dashboard.fleet.Fleet` validates it once per push period);
 * ``<ns>/monitor/*``: the monitors' liveliness tokens (with history: the ones already up), so a
   rig whose monitor left shows ``no monitor`` at the next push;
-* a query on ``<ns>/rig/<rigs>/health`` at start: every monitor answers with the latest verdict
+* a liveliness query on ``<ns>/monitor/*``, then a query on ``<ns>/rig/<rigs>/health`` at start
+  (a verdict is shown only from a monitor known to be up): every monitor answers with the latest verdict
   of each rig it holds, as for ``hydromon watch``;
 * a query on ``<ns>/rig/<id>/ranges`` for each new rig, and again when its health names other
   ranges or another monitor: the monitor answers with the ``monitor.ranges.Ranges`` it grades
@@ -73,6 +74,10 @@ class BusFeed:
         self._threads.append(t)
 
     def _query_health(self, wait_s: float) -> None:
+        # the monitors up now first, as watch does: only a live monitor's verdict is shown
+        for reply in self.session.liveliness().get(f"{self.ns}/monitor/*", timeout=min(wait_s, QUERY_TIMEOUT_S)):
+            if reply.ok is not None:
+                self.fleet.put_monitor(str(reply.ok.key_expr).rsplit("/", 1)[-1], True, self.clock())
         seen = set()
         for reply in self.session.get(f"{self.ns}/rig/{self.rigs}/health", timeout=wait_s):
             if self._stop.is_set():

@@ -9,10 +9,12 @@ the latest payload of each rig that sent one (``contract.Health``; an invalid on
 never shown), keeps it in the rig's history when a ring is due, and returns the rows that
 changed. A row says the rig's grade, confidence, status, why in words
 (``hydromon.engine.words.why_words`` with the rig's ranges when known), since when it has its
-grade, and a flag when its verdict cannot be trusted to be current (a verdict from an earlier
-start of the same monitor, a lower health ``epoch`` than the one held, is dropped): ``no monitor`` (the monitor
+grade, and a flag when its verdict cannot be trusted to be current: ``no monitor`` (the monitor
 that said it, health's ``node``, has left the bus: its liveliness token is gone; for a verdict
 without ``node``, no monitor is up at all) or ``silent`` (no verdict for :data:`SILENT_S`).
+Which verdicts are shown follows ``hydromon watch``'s rule (``hydromon.engine.board.Board.claim``):
+not one from an earlier start of the rig's monitor, nor, live, one from a monitor that is not up
+or from another monitor while the rig's own is up.
 """
 
 from __future__ import annotations
@@ -26,14 +28,13 @@ from pydantic import ValidationError
 from hydromon.contract import GRADES, PARAM_UNITS, PARAM_WORDS, UNKNOWN, Event, Health
 from hydromon.dashboard.eventlog import EventLog
 from hydromon.dashboard.history import RigHistory
-from hydromon.engine.board import attention_order
+from hydromon.engine.board import NO_MONITOR, Board, attention_order
 from hydromon.engine.words import why_words
 
-__all__ = ["Fleet", "Tick", "SILENT_S", "NO_MONITOR", "SILENT", "row_order", "ranges_view"]
+__all__ = ["Fleet", "Tick", "SILENT_S", "SILENT", "row_order", "ranges_view"]
 
 SILENT_S = 2.0
 """A rig with no verdict for this long [s] is flagged ``silent`` (its monitor sends ten a second)."""
-NO_MONITOR = "no monitor"
 SILENT = "silent"
 
 
@@ -82,9 +83,10 @@ class Fleet:
         self.since: dict[str, float] = {}
         self.history: dict[str, RigHistory] = {}
         self.ranges: dict[str, object] = {}
-        self.monitors: dict[str, bool] = {}     # node -> up
+        # the monitors (node -> up) and whose verdict each rig shows; live, the monitors are followed
+        self.board = Board(following=live)
         self.invalid = 0                         # health or event payloads that are not the contract's
-        self.superseded = 0                      # verdicts of an earlier start (epoch) of the rig's monitor
+        self.not_shown = 0                       # verdicts Board.claim does not show
         self.history_shape: tuple | None = None  # (fine, coarse) of new rigs' histories
         self._raw: dict[str, tuple[bytes, float]] = {}
         self._raw_events: list[tuple[str, bytes, float]] = []
@@ -108,6 +110,11 @@ class Fleet:
 
     def put_monitor(self, node: str, up: bool, wall: float) -> None:
         self._monitor_changes.append((node, up, wall))
+
+    @property
+    def monitors(self) -> dict[str, bool]:
+        """The monitors seen, by node name: up or gone."""
+        return self.board.monitors
 
     def set_ranges(self, rig: str, ranges) -> None:
         with self.lock:
@@ -159,11 +166,10 @@ class Fleet:
         except ValidationError:
             self.invalid += 1
             return
-        prev = self.latest.get(rig)
-        if prev is not None and h["node"] is not None and h["node"] == prev["node"] and \
-                h["epoch"] is not None and prev["epoch"] is not None and h["epoch"] < prev["epoch"]:
-            self.superseded += 1  # from an earlier start of the rig's monitor: late, not current
+        if not self.board.claim(rig, h["node"], h["epoch"]):
+            self.not_shown += 1
             return
+        prev = self.latest.get(rig)
         if prev is None or prev["grade"] != h["grade"]:
             self.since[rig] = wall
         if prev is None or prev["ranges"] != h["ranges"] or prev["node"] != h["node"]:
@@ -184,7 +190,7 @@ class Fleet:
 
     def _monitor(self, node: str, up: bool, wall: float, out: Tick) -> None:
         was = self.monitors.get(node)
-        self.monitors[node] = up
+        self.board.monitor(node, up)
         if up and was is False:
             out.events.append(self.events.add({"wall": wall, "rig": None, "kind": "monitor", "from": "gone",
                                                "to": "up", "node": node, "reason": f"monitor {node} is back"}))
@@ -197,10 +203,9 @@ class Fleet:
     def _flag(self, rig: str, now: float) -> str | None:
         if not self.live:
             return None
-        node = self.latest[rig]["node"]
-        if node is not None and not self.monitors.get(node, False):
+        if self.board.monitor_gone(rig):
             return NO_MONITOR
-        if node is None and self.monitors and not any(self.monitors.values()):
+        if self.latest[rig]["node"] is None and self.monitors and not any(self.monitors.values()):
             return NO_MONITOR
         if now - self.arrived[rig] > SILENT_S:
             return SILENT

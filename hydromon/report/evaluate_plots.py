@@ -91,7 +91,10 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
     mark_gaps(ax)
     ax.set_title(f"{Path(rec.source).name}, rig {rec.rig}: final grade {ev.assessment.grade} "
                  f"(confidence {ev.assessment.confidence:.2f})")
-    if len(h):
+    if not graded:
+        ax_p.text(0.5, 0.5, "not graded: no ranges made for this rig", transform=ax_p.transAxes, ha="center",
+                  va="center", fontsize=8)
+    elif len(h):
         colours = np.array([(0.8, 0.8, 0.8)] + [matplotlib.colors.to_rgb(c) for c in _GRADE_COLOURS])
         img = colours[h.grades.T + 1]  # (graded, events, rgb); unknown (-1) grey
         edges = np.r_[t_ev, t_ev[-1] + (t_ev[-1] - t_ev[-2] if len(t_ev) > 1 else 1.0)]

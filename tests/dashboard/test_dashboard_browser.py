@@ -7,12 +7,11 @@ open). Headless Chromium (Playwright) checks: the fleet page shows every rig at 
 press-7's change reaches the open page without a reload and the events page lists it (and
 takes an acknowledgement with a comment, kept in the event log); a rig
 page draws its parameter plots (pixels of a screenshot); killing the monitor flags its rigs
-``no monitor`` within 2 s; no page logs a JavaScript error.
+``no monitor`` within 2 s; no page logs a JavaScript error; a dashboard restarted on the same
+state directory shows the acknowledgement.
 
-Events: the monitor announces grade changes on ``<ns>/rig/<id>/event``. A monitor that does not
-announce them yet is stood in for by this test: when press-7's published health turns to fault
-and no event for it follows within 2 s, the test publishes a contract-valid ``Event`` itself,
-clearly marked in its reason as a stand-in.
+The grade event on the events page is the monitor's own (``<ns>/rig/<id>/event``), heard on the
+bus by this test too.
 """
 
 from __future__ import annotations
@@ -52,33 +51,20 @@ def _fleet_file(path, table4: int):
     return str(path)
 
 
-class StandIn:
-    """Publishes a grade event for press-7 when its health turns to fault and the monitor says nothing."""
+class Events:
+    """press-7's events as the monitor publishes them."""
 
     def __init__(self, session):
-        self.session = session
-        self.events: list[dict] = []
-        self.fault_seen: float | None = None
-        self.last: dict | None = None
-        self.sent = False
-        self.ev_sub = session.declare_subscriber(f"hydro/rig/{CHANGING}/event", zenoh.handlers.FifoChannel(1000))
-        self.h_sub = session.declare_subscriber(f"hydro/rig/{CHANGING}/health", zenoh.handlers.FifoChannel(100_000))
+        self.got: list[dict] = []
+        self.sub = session.declare_subscriber(f"hydro/rig/{CHANGING}/event", zenoh.handlers.FifoChannel(1000))
 
-    def poll(self) -> None:
-        while (m := self.ev_sub.try_recv()) is not None:
-            self.events.append(orjson.loads(m.payload.to_bytes()))
-        while (m := self.h_sub.try_recv()) is not None:
-            h = orjson.loads(m.payload.to_bytes())
-            if h["grade"] == "fault" and self.fault_seen is None:
-                self.fault_seen = time.monotonic()
-            self.last = h
-        real = any(e.get("kind") == "grade" and e.get("to") == "fault" for e in self.events)
-        if self.fault_seen is not None and not real and not self.sent and time.monotonic() - self.fault_seen > 2.0:
-            ev = Event.model_validate({"seq": self.last["seq"], "t": self.last["t"], "kind": "grade", "from": "health",
-                                       "to": "fault", "reason": "stand-in for the monitor's event (test): "
-                                       "press-7 restarted as a faulty rig", "node": self.last.get("node")})
-            self.session.put(f"hydro/rig/{CHANGING}/event", orjson.dumps(ev.model_dump(by_alias=True)))
-            self.sent = True
+    def poll(self) -> list[dict]:
+        while (m := self.sub.try_recv()) is not None:
+            self.got.append(Event.model_validate_json(m.payload.to_bytes()).model_dump(by_alias=True))
+        return self.got
+
+    def to_fault(self) -> list[dict]:
+        return [e for e in self.poll() if e["kind"] == "grade" and e["to"] == "fault"]
 
 
 @pytest.mark.network
@@ -95,7 +81,7 @@ def test_pages_in_a_browser_against_router_sim_monitor_dashboard_processes(tmp_p
         with open_session("client", connect=[ep]) as s:
             wait_for(lambda: any(r.ok is not None for r in s.liveliness().get("hydro/monitor/mon1", timeout=1.0)),
                      120, "the monitor's liveliness token", alive=procs.check_alive)
-            standin = StandIn(s)
+            heard = Events(s)
             procs.start("sim", "sim", *bus)
             procs.start("sim7", "sim", "--fleet", _fleet_file(tmp_path / "healthy.json", 2), *bus)
             with chromium() as ctx:
@@ -110,13 +96,10 @@ def test_pages_in_a_browser_against_router_sim_monitor_dashboard_processes(tmp_p
                 procs.stop("sim7")
                 procs.start("sim7b", "sim", "--fleet", _fleet_file(tmp_path / "faulty.json", 3), *bus)
 
-                def changed():
-                    standin.poll()
-                    return fleet_grades(fleet.page).get(CHANGING) == "fault"
-
-                wait_for(changed, 90, "press-7 at fault on the open fleet page", alive=procs.check_alive, poll_s=0.2)
+                wait_for(lambda: fleet_grades(fleet.page).get(CHANGING) == "fault", 90, "press-7 at fault on the open fleet page", alive=procs.check_alive, poll_s=0.2)
                 assert fleet.page.evaluate("() => window.__notReloaded === true")
-                wait_for(lambda: standin.poll() or standin.sent or standin.events, 10, "press-7's grade event")
+                wait_for(heard.to_fault, 10, "the monitor's grade event for press-7")
+                reason = heard.to_fault()[0]["reason"]
 
                 events = Watched(ctx)
                 events.page.goto(url + "events")
@@ -124,8 +107,9 @@ def test_pages_in_a_browser_against_router_sim_monitor_dashboard_processes(tmp_p
                     """() => [...document.querySelectorAll('#events tbody tr')].some(tr =>
                         tr.dataset.kind === 'grade' && tr.textContent.includes('press-7') &&
                         tr.textContent.includes('fault'))"""), 15, "press-7's grade event on the events page")
-                # acknowledged on the page, with a comment: kept in the dashboard's event log
                 row = events.page.locator("#events tbody tr[data-kind=grade]", has_text="press-7").first
+                assert reason and reason in row.text_content(), (reason, row.text_content())
+                # acknowledged on the page, with a comment: kept in the dashboard's event log
                 row.get_by_role("button", name="acknowledge").click()
                 row.locator("input[name=comment]").fill("valve swapped <b>today</b>")
                 row.locator("input[name=by]").fill("anna")
@@ -162,7 +146,18 @@ def test_pages_in_a_browser_against_router_sim_monitor_dashboard_processes(tmp_p
                 for w in (fleet, events, rig):
                     assert w.errors == [], w.errors
                     assert w.dialogs == []
-            standin.poll()
+
+                # a restarted dashboard shows the acknowledged event, comment and all, from its log
+                procs.stop("dashboard")
+                url2 = procs.dashboard("dashboard2", "--state-dir", str(tmp_path / "state"), *bus)
+                again = Watched(ctx)
+                again.page.goto(url2 + "events")
+                wait_for(lambda: again.page.evaluate(
+                    """() => [...document.querySelectorAll('#events tbody tr[data-kind=grade]')].some(tr =>
+                        tr.textContent.includes('press-7') && tr.textContent.includes('valve swapped <b>today</b>')
+                        && tr.textContent.includes('anna'))"""), 15, "the acknowledgement after a restart")
+                assert again.errors == [] and again.dialogs == [], again.errors
     finally:
         procs.close()
-    assert "Traceback" not in procs.log("dashboard"), procs.log("dashboard")
+    for name in ("dashboard", "dashboard2"):
+        assert "Traceback" not in procs.log(name), procs.log(name)

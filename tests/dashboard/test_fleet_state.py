@@ -8,7 +8,8 @@ import orjson
 
 from hydromon.contract import Health
 from hydromon.dashboard.eventlog import EventLog
-from hydromon.dashboard.fleet import NO_MONITOR, SILENT, Fleet, row_order
+from hydromon.dashboard.fleet import SILENT, Fleet, row_order
+from hydromon.engine.board import NO_MONITOR
 from hydromon.dashboard.history import RigHistory
 from monitor.ranges import Ranges
 
@@ -78,12 +79,22 @@ def test_flags_no_monitor_and_silent():
 
 def test_a_verdict_of_an_earlier_start_of_the_monitor_is_not_taken():
     f = Fleet()
+    f.put_monitor("mon1", True, 0.0)
     f.put_health("a", health("fault", 4, epoch=7), 1.0)
     f.tick(1.0)
     f.put_health("a", health("health", 0, epoch=6), 1.1)  # late, from before the monitor's restart
-    assert f.tick(1.2).rows == [] and f.superseded == 1
+    assert f.tick(1.2).rows == [] and f.not_shown == 1
     f.put_health("a", health("health", 0, epoch=8), 1.3)
     assert [r["grade"] for r in f.tick(1.4).rows] == ["health"]
+    # as watch: not a verdict from a monitor that is not up, nor another's while the rig's own is up
+    f.put_health("a", health("fault", 4, node="ghost"), 1.5)
+    f.put_monitor("mon2", True, 1.5)
+    f.tick(1.6)
+    f.put_health("a", health("fault", 4, node="mon2"), 1.7)
+    assert f.tick(1.8).rows == [] and f.not_shown == 3
+    f.put_monitor("mon1", False, 1.9)
+    f.put_health("a", health("fault", 4, node="mon2"), 1.9)  # its own gone, another takes the rig over
+    assert [(r["grade"], r["node"], r["flag"]) for r in f.tick(2.0).rows] == [("fault", "mon2", None)]
 
 
 def test_history_keeps_a_point_a_second_and_one_every_six():

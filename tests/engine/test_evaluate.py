@@ -297,6 +297,12 @@ def test_plots_show_the_run_the_evaluation_saw(g4_run, tmp_path, capsys):
                                                "gappy-csv-params-other.png", "gappy-csv-signals.png"]
     for f in summary.files:
         assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f.stat().st_size > 10_000
+    # a rig with no ranges made for it: every parameter in one figure, not graded
+    from dataclasses import replace
+
+    ungraded = plot_evaluation(replace(ev, ranges=None), tmp_path / "ungraded")
+    assert [f.name for f in ungraded.files] == ["gappy-csv-grade.png", "gappy-csv-params.png",
+                                                "gappy-csv-signals.png"]
     # the CLI writes the same three and says where
     assert main(["evaluate", str(p), "--plots", str(tmp_path / "cli")]) == 0
     err = capsys.readouterr().err

@@ -69,18 +69,18 @@ def run(args) -> int:
             raise ValueError("--foxglove-port serves the bus; open a recording in Foxglove itself "
                              "(docs/dashboard.md)")
         dash = open_recording(args.recording, host=args.host, port=args.port, fallback_ranges=fallback)
-        session = None
+        node = None
     else:
         events = args.events_file or default_events_path(args.state_dir, args.namespace)
         if args.events_file:
             checks.writable_file("--events-file", args.events_file)
-        session = session_from_args(args)
+        node = session_from_args(args)  # closed with its connectivity log
         try:
-            dash = open_live(session, namespace=args.namespace, rigs=chunk, host=args.host, port=args.port,
+            dash = open_live(node.session, namespace=args.namespace, rigs=chunk, host=args.host, port=args.port,
                              events_path=events, fallback_ranges=fallback, wait_s=args.wait,
                              foxglove_port=args.foxglove_port)
         except BaseException:
-            session.close()
+            node.close()
             raise
     stop = threading.Event()
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
@@ -93,7 +93,7 @@ def run(args) -> int:
     finally:
         restore_signals()
         dash.close()
-        if session is not None:
-            session.close()
+        if node is not None:
+            node.close()
     print("hydromon dashboard: stopped", file=sys.stderr)
     return 0

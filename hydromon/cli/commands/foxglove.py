@@ -46,12 +46,13 @@ def run(args) -> int:
     except ValueError as exc:
         raise ValueError(f"--rigs: {exc}") from None
     fallback = ranges_from_args(args)
-    session = session_from_args(args)
+    node = session_from_args(args)  # closed with its connectivity log
+    session = node.session
     try:
         dash = open_live(session, namespace=args.namespace, rigs=chunk, host=args.host, port=None,
                          fallback_ranges=fallback, foxglove_port=args.port)
     except BaseException:
-        session.close()
+        node.close()
         raise
     stop = threading.Event()
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
@@ -62,6 +63,6 @@ def run(args) -> int:
     finally:
         restore_signals()
         dash.close()
-        session.close()
+        node.close()
     print("hydromon foxglove: stopped", file=sys.stderr)
     return 0
