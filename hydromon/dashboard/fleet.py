@@ -13,8 +13,8 @@ grade, and a flag when its verdict cannot be trusted to be current: ``no monitor
 that said it, health's ``node``, has left the bus: its liveliness token is gone; for a verdict
 without ``node``, no monitor is up at all) or ``silent`` (no verdict for :data:`SILENT_S`).
 Which verdicts are shown follows ``hydromon watch``'s rule (``hydromon.engine.board.Board.claim``):
-not one from an earlier start of the rig's monitor, nor, live, one from a monitor that is not up
-or from another monitor while the rig's own is up.
+not one from an earlier start of the rig's monitor, nor, once a monitor's liveliness token has been
+heard, one from a monitor that is not up or from another monitor while the rig's own is up.
 """
 
 from __future__ import annotations
@@ -83,8 +83,9 @@ class Fleet:
         self.since: dict[str, float] = {}
         self.history: dict[str, RigHistory] = {}
         self.ranges: dict[str, object] = {}
-        # the monitors (node -> up) and whose verdict each rig shows; live, the monitors are followed
-        self.board = Board(following=live)
+        # the monitors (node -> up) and whose verdict each rig shows; followed from the first
+        # liveliness token heard, as watch does
+        self.board = Board()
         self.invalid = 0                         # health or event payloads that are not the contract's
         self.not_shown = 0                       # verdicts Board.claim does not show
         self.history_shape: tuple | None = None  # (fine, coarse) of new rigs' histories
