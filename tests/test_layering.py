@@ -10,6 +10,7 @@ Layers, lowest first; a package imports only packages of its own layer or below:
     hydromon.store      MCAP, CSV, replay from files
     hydromon.report     tables, JSON documents, plots
     hydromon.bus        zenoh nodes
+    hydromon.dashboard  the web dashboard and the Foxglove bridge
     hydromon.tools      bench, goldens, doc generation
     hydromon.cli        the command line
 """
@@ -23,14 +24,19 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 TOPS = ("plant_sim", "monitor", "hydromon")
 LAYERS = ("hydromon.contract", "plant_sim", "monitor", "hydromon.engine", "hydromon.store", "hydromon.report",
-          "hydromon.bus", "hydromon.tools", "hydromon.cli")
+          "hydromon.bus", "hydromon.dashboard", "hydromon.tools", "hydromon.cli")
 # third-party packages that only some layers may use: the numerical core and the vocabulary
 # stay free of I/O, the bus is zenoh's, files are the store's, pictures the report's
 ONLY_IN = {
-    "zenoh": {"hydromon.bus", "hydromon.cli", "hydromon.tools", "hydromon.store"},  # store: key expressions only
+    # store: key expressions only
+    "zenoh": {"hydromon.bus", "hydromon.cli", "hydromon.tools", "hydromon.store", "hydromon.dashboard"},
     "mcap": {"hydromon.store", "hydromon.tools"},
     "matplotlib": {"hydromon.report", "hydromon.tools"},
     "rich": {"hydromon.report", "hydromon.cli"},
+    # the web server and the Foxglove bridge are the dashboard's
+    "starlette": {"hydromon.dashboard"},
+    "uvicorn": {"hydromon.dashboard"},
+    "foxglove": {"hydromon.dashboard"},
 }
 MAX_LINES = 450
 
@@ -144,6 +150,18 @@ def test_the_ranges_data_is_installed():
     data = set((ROOT / "monitor" / "data").glob("*.json"))
     assert {p.name for p in data} >= {"table3.json", "default_ranges.json"}
     assert data <= shipped, data - shipped
+
+
+def test_the_dashboards_pages_and_vendored_library_are_installed():
+    # every file the web server serves comes from the package (no CDN): each must be package data
+    globs = _setuptools_config()["package-data"]["hydromon.dashboard"]
+    root = ROOT / "hydromon" / "dashboard"
+    shipped = {p for g in globs for p in root.glob(g)}
+    served = {p for p in (root / "static").rglob("*") if p.is_file()}
+    names = {p.relative_to(root / "static").as_posix() for p in served}
+    assert {"fleet.html", "rig.html", "events.html", "vendor/uplot/uPlot.iife.min.js", "vendor/uplot/LICENSE",
+            "vendor/uplot/VERSION", "foxglove/hydromon-layout.json"} <= names
+    assert served <= shipped, served - shipped
 
 
 def test_the_parameter_names_are_the_plants_identified_ones():

@@ -99,7 +99,7 @@ def _open_demo_session(zenoh_config=None):
 def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
              namespace: str = DEFAULT_NAMESPACE, fleet: FleetSpec | None = None,
              stop_event: threading.Event | None = None, live: bool | None = None,
-             plain_every: float = 3.0, stream=None, log=None, zenoh_config=None) -> DemoResult:
+             plain_every: float = 3.0, stream=None, log=None, zenoh_config=None, attach=None) -> DemoResult:
     """Run sim, monitor and recorder on one embedded session; show the grades; return.
 
     Parameters
@@ -121,6 +121,10 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
         Where the table goes (default stdout); ``log`` gets progress lines (default stderr).
     zenoh_config : path or None
         A zenoh configuration file for the embedded session (:func:`_demo_session`).
+    attach : callable or None
+        ``attach(session, namespace) -> (close, lines)``, called once the monitor is up and before
+        the rigs start: something else on the demo's session (the command line's dashboard);
+        ``lines`` are printed on ``log`` and above the table, ``close()`` is called at the end.
     """
     from monitor.pipeline import warm_up
     from hydromon.engine.core import MonitorCore
@@ -146,6 +150,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     stop_sim, stop_mon, stop_rec = threading.Event(), threading.Event(), threading.Event()
     core = MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=log_rig_warning)
     path = _recording_path(out_dir)
+    close_attached, lines = None, []
 
     print("hydromon demo: loading the numerical kernels (compiled once on a fresh machine, "
           "about a minute)...", file=log, flush=True)
@@ -174,6 +179,10 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
             rec.start()
             mon.start()
             await_recorder_and_monitor(session, namespace, "demo", rec, mon, "demo", stop)
+            if attach is not None:
+                close_attached, lines = attach(session, namespace)
+                for line in lines:
+                    print(f"hydromon demo: {line}", file=log, flush=True)
             sim.start()
             print(f"hydromon demo: {len(spec.rigs)} rig(s) at "
                   f"{'max speed' if rate == 0 else f'{rate:g}x real time'}, bus {endpoint}, recording {path}",
@@ -184,7 +193,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
                 return stop.is_set() or (deadline is not None and time.monotonic() >= deadline) or \
                     any(w.error is not None or (w.ident is not None and not w.is_alive()) for w in workers)
 
-            title = f"hydromon demo - {namespace}/rig/*/health (Ctrl-C to stop)"
+            title = f"hydromon demo - {namespace}/rig/*/health (Ctrl-C to stop)" + "".join(f"\n{x}" for x in lines)
             if live:
                 with live_display(stream, render_rich(spec.ids, health, result.truth, title)) as update:
                     while not done():
@@ -198,7 +207,8 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
                     drain()
                     if time.monotonic() >= next_print:
                         next_print += plain_every
-                        print(render_plain(spec.ids, health, result.truth) + "\n", file=stream, flush=True)
+                        print("".join(f"{x}\n" for x in lines) + render_plain(spec.ids, health, result.truth) + "\n",
+                              file=stream, flush=True)
         finally:
             # data-flow order: what the sim sent is graded, and the verdicts are recorded
             for ev, w in ((stop_sim, sim), (stop_mon, mon), (stop_rec, rec)):
@@ -206,6 +216,8 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
                 if w.ident is not None:
                     w.join(60)
             drain()
+            if close_attached is not None:
+                close_attached()
         for w in workers:
             if w.error is not None:
                 raise w.error

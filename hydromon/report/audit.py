@@ -72,8 +72,9 @@ def _md_table(rows, header):
     return "\n".join(out)
 
 
-def write_report(result, directory) -> Path:
-    """Write ``audit.md`` and PNG plots (matplotlib, Agg) into ``directory``; returns the Markdown path."""
+def write_report(result, directory, what: str = "") -> Path:
+    """Write ``audit.md`` and PNG plots (matplotlib, Agg) into ``directory``; returns the Markdown
+    path. ``what`` names the record (file and rig) in every plot's title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -84,17 +85,31 @@ def write_report(result, directory) -> Path:
     t = result.t
     best = result.best
     names = ("x1 [m]", "x3 [Pa]", "x4 [Pa]", "x5 [m]")
+    what = f"{what}: " if what else ""
     if result.simulated_nominal is not None:
-        fig, axes = plt.subplots(4, 1, figsize=(10, 9), sharex=True)
-        for i, ax in enumerate(axes):
+        # left: the measured signal and the free runs; right: the free runs' error (measured - simulated)
+        fig, axes = plt.subplots(4, 2, figsize=(14, 9), sharex=True)
+        extended = best is not None and best.simulated is not None
+        for i, (ax, ax_e) in enumerate(axes):
             ax.plot(t, result.measured[:, i], "k", lw=0.8, label="measured")
             ax.plot(t, result.simulated_nominal[:, i], "tab:red", lw=0.8, label="nominal free run")
-            if best is not None and best.simulated is not None:
+            ax_e.plot(t, result.measured[:, i] - result.simulated_nominal[:, i], "tab:red", lw=0.8, label="nominal")
+            if extended:
                 ax.plot(t, best.simulated[:, i], "tab:blue", lw=0.8, label=f"with {best.name}")
-            ax.axvline(t[result.split], color="gray", ls="--", lw=0.8)
+                ax_e.plot(t, result.measured[:, i] - best.simulated[:, i], "tab:blue", lw=0.8,
+                          label=f"with {best.name}")
+            for a in (ax, ax_e):
+                a.axvline(t[result.split], color="gray", ls="--", lw=0.8)
+                a.grid(alpha=0.3)
+            ax_e.axhline(0.0, color="k", lw=0.5)
             ax.set_ylabel(names[i])
-        axes[0].legend(loc="upper right", fontsize=8)
-        axes[-1].set_xlabel("t [s] (dashed: start of held-out data)")
+            ax_e.set_ylabel(f"error {names[i]}")
+        axes[0, 0].set_title(f"{what}measured and free-run signals", fontsize=10)
+        axes[0, 1].set_title(f"{what}free-run error (measured - simulated)", fontsize=10)
+        axes[0, 0].legend(loc="upper right", fontsize=8)
+        axes[0, 1].legend(loc="upper right", fontsize=8)
+        for ax in axes[-1]:
+            ax.set_xlabel("t [s] (dashed: start of held-out data)")
         fig.tight_layout()
         fig.savefig(d / "freerun.png", dpi=90)
         plt.close(fig)
@@ -106,6 +121,8 @@ def write_report(result, directory) -> Path:
             br, bres = best.residuals[g]
             ax.plot(t[br], bres, ".", ms=1, color="tab:blue", label=f"with {best.name}")
         ax.set_ylabel(f"{g} residual")
+        ax.grid(alpha=0.3)
+    axes[0].set_title(f"{what}equation-error residuals (each in its equation's SI unit)", fontsize=10)
     axes[0].legend(loc="upper right", fontsize=8, markerscale=8)
     axes[-1].set_xlabel("t [s]")
     fig.tight_layout()

@@ -10,7 +10,8 @@ from hydromon.contract import GRADES
 from hydromon.engine.board import Board, attention_order
 from hydromon.report.cells import GRADE_STYLE, TABLE_PARAMS, fmt_value
 
-__all__ = ["BOARD_HEAD", "board_columns", "board_counts", "board_rows", "render_board_plain", "render_board_rich"]
+__all__ = ["BOARD_HEAD", "board_columns", "board_counts", "board_events", "board_rows", "render_board_plain",
+           "render_board_rich"]
 
 
 BOARD_HEAD = ["rig", "grade", "conf", "status", "why", *TABLE_PARAMS, "t [s]", "age [s]"]
@@ -37,6 +38,13 @@ def board_rows(board: Board, now: float, top: int | None = None) -> tuple[list[l
     return rows, len(items) - len(shown)
 
 
+def board_events(board: Board, now: float) -> list[str]:
+    """The latest events, newest first, one line each: how long ago, rig, from -> to, reason."""
+    return [f"{max(0.0, now - at):6.1f} s ago  {rig}  {ev['kind']} {ev['from']} -> {ev['to']}"
+            + (f": {ev['reason']}" if ev.get("reason") else "")
+            for rig, ev, at in reversed(board.events)]
+
+
 def board_counts(board: Board) -> str:
     """One line: rigs per grade, worst first, and the invalid payloads if any."""
     n = board.grade_counts()
@@ -46,7 +54,7 @@ def board_counts(board: Board) -> str:
     if bad:
         line += f"; {bad} with bad input"
     if board.invalid:
-        line += f"; {board.invalid} invalid health payload(s) ignored"
+        line += f"; {board.invalid} invalid payload(s) ignored"
     return line
 
 
@@ -59,6 +67,9 @@ def render_board_plain(board: Board, now: float, top: int | None = None) -> str:
     lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in table]
     if more:
         lines.append(f"... and {more} more rig(s) (--top N shows more)")
+    events = board_events(board, now)
+    if events:
+        lines += ["latest events:", *(f"  {e}" for e in events)]
     return "\n".join(lines)
 
 
@@ -89,7 +100,9 @@ def render_board_rich(board: Board, now: float, top: int | None = None, title: s
 
     rows, more = board_rows(board, now, top)
     keep = board_columns(rows, width)
-    caption = f"... and {more} more rig(s) (--top N shows more)" if more else None
+    events = board_events(board, now)
+    caption = "\n".join(([f"... and {more} more rig(s) (--top N shows more)"] if more else [])
+                        + (["latest events:", *(f"  {escape(e)}" for e in events)] if events else [])) or None
     table = Table(title=f"{title}\n{board_counts(board)}" if title else board_counts(board), title_justify="left",
                   caption=caption, caption_justify="left", box=box.SIMPLE_HEAD, pad_edge=False,
                   padding=(0, 1, 0, 0))

@@ -3,8 +3,10 @@
 * ``<stem>-grade.png``: the fused grade over time with its confidence, and every graded
   parameter's own grade below it (grey: unknown), so a change of grade shows which
   parameter moved it;
-* ``<stem>-params.png``: each parameter's estimate over time with its +-3 standard-error
-  band, the health-band edges of the graded ones, and the refined value when there is one;
+* ``<stem>-params.png``: each graded parameter's estimate over time with its +-3
+  standard-error band against its health bands, drawn as coloured, labelled zones, and the
+  refined value when there is one; ``<stem>-params-other.png``: the other parameters alike,
+  without bands;
 * ``<stem>-signals.png``: the recorded signals with the glitches the outlier gate replaced
   marked, and the gaps.
 
@@ -19,13 +21,14 @@ from pathlib import Path
 
 import numpy as np
 
-from hydromon.contract import GRADES, PARAM_NAMES
+from hydromon.contract import GRADES, PARAM_NAMES, PARAM_UNITS, PARAM_WORDS
+from hydromon.report.zones import GRADE_COLOURS, draw_zones
 from monitor.outlier_gate import gated
 
 __all__ = ["PlotSummary", "plot_evaluation"]
 
 _SENSORS = ("x1", "x3", "x4", "x5")
-_GRADE_COLOURS = ("#2e7d32", "#9ccc65", "#fdd835", "#fb8c00", "#c62828")
+_GRADE_COLOURS = tuple(GRADE_COLOURS[g] for g in GRADES)
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,7 @@ class PlotSummary:
 
 
 def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotSummary:
-    """Write the three PNGs of an :class:`hydromon.engine.evaluate.Evaluation` into ``directory``
+    """Write the four PNGs of an :class:`hydromon.engine.evaluate.Evaluation` into ``directory``
     (created if missing); ``stem`` defaults to the recording's file stem and rig."""
     import matplotlib
 
@@ -56,6 +59,7 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
     except OSError as exc:
         raise ValueError(f"plots directory {str(directory)!r}: {exc.strerror or exc}") from None
     stem = stem or f"{Path(rec.source).stem}-{rec.rig}"
+    where = f"{Path(rec.source).name}, rig {rec.rig}"
     t_ev = rec.t[h.sample] if len(h) else np.empty(0)
     t_gap = [rec.t[i] for i in rec.restarts]
     files = []
@@ -87,7 +91,10 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
     mark_gaps(ax)
     ax.set_title(f"{Path(rec.source).name}, rig {rec.rig}: final grade {ev.assessment.grade} "
                  f"(confidence {ev.assessment.confidence:.2f})")
-    if len(h):
+    if not graded:
+        ax_p.text(0.5, 0.5, "not graded: no ranges made for this rig", transform=ax_p.transAxes, ha="center",
+                  va="center", fontsize=8)
+    elif len(h):
         colours = np.array([(0.8, 0.8, 0.8)] + [matplotlib.colors.to_rgb(c) for c in _GRADE_COLOURS])
         img = colours[h.grades.T + 1]  # (graded, events, rgb); unknown (-1) grey
         edges = np.r_[t_ev, t_ev[-1] + (t_ev[-1] - t_ev[-2] if len(t_ev) > 1 else 1.0)]
@@ -95,46 +102,26 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
                     extent=(edges[0], edges[-1], len(graded), 0))
         ax_p.set_ylim(len(graded), 0)
     ax_p.set_yticks(np.arange(len(graded)) + 0.5, graded)
-    ax_p.set_xlabel("t [s]")
+    ax_p.set_ylabel("grade of each graded parameter", fontsize=8)
+    ax.set_ylabel("grade")
+    ax_p.set_xlabel(f"t [s], rig {rec.rig}")
     handles = [matplotlib.patches.Patch(color=c, label=g) for c, g in zip(_GRADE_COLOURS, GRADES)]
     handles.append(matplotlib.patches.Patch(color=(0.8, 0.8, 0.8), label="unknown"))
     ax_p.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     mark_gaps(ax_p)
     save(fig, "grade")
 
-    # params: estimate +- 3 SE, band edges, refined value
-    fig, axes = plt.subplots(len(PARAM_NAMES), 1, figsize=(9, 1.7 * len(PARAM_NAMES)), sharex=True)
-    for j, (axj, k) in enumerate(zip(axes, PARAM_NAMES)):
-        p, s = h.params[:, j], h.std_errors[:, j]
-        ok = np.isfinite(p) & np.isfinite(s)
-        axj.plot(t_ev, np.where(np.isfinite(p), p, np.nan), color="tab:blue", lw=1.1)
-        axj.fill_between(t_ev, np.where(ok, p - 3 * s, np.nan), np.where(ok, p + 3 * s, np.nan),
-                         color="tab:blue", alpha=0.2, lw=0)
-        final = ev.assessment.params[k]
-        if k in bands:
-            for e in np.unique(bands[k].edge_array()):
-                axj.axhline(e, color="tab:red", lw=0.6, ls="--")
-        if ev.refined is not None and k in ev.refined.params and np.isfinite(ev.refined.params[k]):
-            axj.axhline(ev.refined.params[k], color="tab:green", lw=1.0, ls="-.", label="refined")
-            axj.legend(loc="upper right", fontsize=7)
-        if np.isfinite(final) and final != 0.0:
-            # the view: the last fifth of the run +- 4 SE, and the edges of the band it is in
-            tail, sd = (p[ok][-max(1, ok.sum() // 5):], s[ok][-max(1, ok.sum() // 5):]) if ok.any() \
-                else (np.array([final]), np.array([0.0]))
-            lo, hi = np.min(tail - 4 * sd), np.max(tail + 4 * sd)
-            if k in bands:
-                e = bands[k].edge_array()
-                below, above = e[e <= final], e[e > final]
-                lo = min(lo, below.max()) if below.size else lo
-                hi = max(hi, above.min()) if above.size else hi
-            pad = max(hi - lo, 0.02 * abs(final))
-            axj.set_ylim(lo - 0.15 * pad, hi + 0.15 * pad)
-        axj.set_ylabel(k, fontsize=8)
-        axj.grid(alpha=0.3)
-        mark_gaps(axj)
-    axes[0].set_title("estimates (band: +-3 standard errors; dashed red: health-band edges)")
-    axes[-1].set_xlabel("t [s]")
-    save(fig, "params")
+    # params: estimate +- 3 SE against the health bands (graded), then the others; a rig with no
+    # ranges made for it has every parameter in the one figure, said to be not graded
+    graded_names = [k for k in PARAM_NAMES if k in bands]
+    other_names = [k for k in PARAM_NAMES if k not in bands]
+    if graded_names:
+        save(_param_figure(plt, ev, h, t_ev, graded_names, bands, mark_gaps,
+                           f"{where}: graded parameters (band: +-3 standard errors; zones: health bands)"), "params")
+    if other_names:
+        save(_param_figure(plt, ev, h, t_ev, other_names, bands, mark_gaps,
+                           f"{where}: {'other parameters, ' if graded_names else ''}not graded "
+                           "(band: +-3 standard errors)"), "params-other" if graded_names else "params")
 
     # signals, with the glitches the gate replaced
     g, _ = gated(rec.samples, ev.options, restarts=rec.restarts)
@@ -156,7 +143,46 @@ def plot_evaluation(ev, directory: str | Path, stem: str | None = None) -> PlotS
         axj.grid(alpha=0.3)
         axj.legend(loc="upper right", fontsize=7)
         mark_gaps(axj)
-    axes[0].set_title(f"recorded signals ({len(rec.restarts)} gap(s) dotted)")
+    axes[0].set_title(f"{where}: recorded signals ({len(rec.restarts)} gap(s) dotted)")
     axes[-1].set_xlabel("t [s]")
     save(fig, "signals")
     return PlotSummary(files, len(h), markers, len(rec.restarts))
+
+
+def _param_figure(plt, ev, h, t_ev, names, bands, mark_gaps, title):
+    """One panel per parameter of ``names``: the estimate, its +-3 SE band, the health bands of a
+    graded one (``bands``: name -> its health bands) as zones, the refined value; the view is the run's last fifth and the nearest edges."""
+    fig, axes = plt.subplots(len(names), 1, figsize=(9, 0.6 + 1.8 * len(names)), sharex=True, squeeze=False)
+    axes = axes[:, 0]
+    for axj, k in zip(axes, names):
+        j = PARAM_NAMES.index(k)
+        p, s = h.params[:, j], h.std_errors[:, j]
+        ok = np.isfinite(p) & np.isfinite(s)
+        axj.plot(t_ev, np.where(np.isfinite(p), p, np.nan), color="tab:blue", lw=1.1, label="estimate", zorder=3)
+        axj.fill_between(t_ev, np.where(ok, p - 3 * s, np.nan), np.where(ok, p + 3 * s, np.nan),
+                         color="tab:blue", alpha=0.2, lw=0, zorder=2)
+        final = ev.assessment.params[k]
+        if ev.refined is not None and k in ev.refined.params and np.isfinite(ev.refined.params[k]):
+            axj.axhline(ev.refined.params[k], color="tab:green", lw=1.0, ls="-.", label="refined", zorder=3)
+            axj.legend(loc="upper left", fontsize=7)
+        if np.isfinite(final) and final != 0.0:
+            # the view: the last fifth of the run +- 4 SE, and the edges of the band it is in
+            tail, sd = (p[ok][-max(1, ok.sum() // 5):], s[ok][-max(1, ok.sum() // 5):]) if ok.any() \
+                else (np.array([final]), np.array([0.0]))
+            lo, hi = np.min(tail - 4 * sd), np.max(tail + 4 * sd)
+            if k in bands:
+                e = bands[k].edge_array()
+                below, above = e[e <= final], e[e > final]
+                lo = min(lo, below.max()) if below.size else lo
+                hi = max(hi, above.min()) if above.size else hi
+            pad = max(hi - lo, 0.02 * abs(final))
+            axj.set_ylim(lo - 0.15 * pad, hi + 0.15 * pad)
+        if k in bands:
+            draw_zones(axj, bands[k])
+        axj.set_ylabel(f"{k} [{PARAM_UNITS[k]}]", fontsize=8)
+        axj.set_title(f"rig {ev.recording.rig}: {PARAM_WORDS[k]}", fontsize=8, loc="left")
+        axj.grid(alpha=0.3)
+        mark_gaps(axj)
+    fig.suptitle(title, fontsize=10)
+    axes[-1].set_xlabel("t [s]")
+    return fig

@@ -66,7 +66,7 @@ def test_board_keeps_the_latest_and_counts_what_it_cannot_show():
     assert not b.update("hydro/rig/a/sample", _health(0), 3.0)
     assert not b.update("other/rig/a/health", _health(0), 3.0)
     assert b.latest["a"]["level"] == 3 and (b.invalid, b.foreign) == (2, 2)
-    assert "2 invalid health payload(s) ignored" in board_counts(b)
+    assert "2 invalid payload(s) ignored" in board_counts(b)
 
 
 def _watch(*args, timeout=90):
@@ -103,6 +103,47 @@ def test_watch_once_asks_the_running_monitor():
     assert sum(doc["counts"].values()) == 5 and doc["invalid"] == 0
     assert part.returncode == 0, part.stderr
     assert "1 rig(s)" in part.stdout and "table4-g1" in part.stdout and "table4-g2" not in part.stdout
+
+
+def _event(seq, to="fault", reason="valve gain -44 % of its baseline"):
+    return orjson.dumps({"seq": seq, "t": seq / 100, "kind": "grade", "from": "health", "to": to, "reason": reason})
+
+
+def test_board_keeps_the_latest_events_newest_first():
+    b = Board()
+    for i in range(12):
+        assert b.event(f"hydro/rig/r{i}/event", _event(i), float(i))
+    assert not b.event("hydro/rig/a/event", b'{"seq": 1, "kind": "mood"}', 12.0)
+    assert not b.event("hydro/rig/a/health", _event(1), 12.0)
+    assert (b.invalid, b.foreign) == (1, 1)
+    text = render_board_plain(b, 12.0)
+    lines = text.splitlines()[text.splitlines().index("latest events:") + 1:]
+    assert len(lines) == 8 and lines[0].split() == ["1.0", "s", "ago", "r11", "grade", "health", "->", "fault:",
+                                                   "valve", "gain", "-44", "%", "of", "its", "baseline"]
+    assert "r3 " not in text and lines[-1].split()[3] == "r4"
+
+
+@pytest.mark.network
+@pytest.mark.timeout(120)
+def test_watch_shows_the_events_it_hears():
+    stop = threading.Event()
+    with listening_session() as (session, ep):
+        def publish():  # until watch has heard one: it subscribes a moment after it starts
+            seq = 0
+            while not stop.wait(0.2):
+                seq += 1
+                session.put("hydro/rig/press-7/event", _event(seq, reason="internal leakage past the fault threshold"))
+
+        t = threading.Thread(target=publish, daemon=True)
+        t.start()
+        try:
+            r = _watch("--plain", "--duration", "4", "--wait", "0.5", "--connect", ep)
+        finally:
+            stop.set()
+            t.join(5)
+    assert r.returncode == 0, r.stderr
+    last = r.stdout.rsplit("latest events:", 1)[-1].splitlines()[1]
+    assert "press-7  grade health -> fault: internal leakage past the fault threshold" in last, r.stdout
 
 
 @pytest.mark.network

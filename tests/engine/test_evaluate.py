@@ -293,13 +293,20 @@ def test_plots_show_the_run_the_evaluation_saw(g4_run, tmp_path, capsys):
     # the markers are where the stream's gate replaced values, gap and all
     assert summary.glitch_markers == ev.glitches and summary.gaps == 1
     assert summary.evaluations == len(ev.history) >= (len(samples) - 2) // 10 - 1  # one per 10 samples
-    assert [f.name for f in summary.files] == ["gappy-csv-grade.png", "gappy-csv-params.png", "gappy-csv-signals.png"]
+    assert [f.name for f in summary.files] == ["gappy-csv-grade.png", "gappy-csv-params.png",
+                                               "gappy-csv-params-other.png", "gappy-csv-signals.png"]
     for f in summary.files:
         assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f.stat().st_size > 10_000
+    # a rig with no ranges made for it: every parameter in one figure, not graded
+    from dataclasses import replace
+
+    ungraded = plot_evaluation(replace(ev, ranges=None), tmp_path / "ungraded")
+    assert [f.name for f in ungraded.files] == ["gappy-csv-grade.png", "gappy-csv-params.png",
+                                                "gappy-csv-signals.png"]
     # the CLI writes the same three and says where
     assert main(["evaluate", str(p), "--plots", str(tmp_path / "cli")]) == 0
     err = capsys.readouterr().err
-    assert err.count("wrote") == 3 and sorted(x.name for x in (tmp_path / "cli").iterdir()) == \
+    assert err.count("wrote") == 4 and sorted(x.name for x in (tmp_path / "cli").iterdir()) == \
         sorted(f.name for f in summary.files)
 
 

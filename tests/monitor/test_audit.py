@@ -190,7 +190,7 @@ def test_cli_prints_the_result_before_a_report_that_fails(tmp_path, capsys, monk
     from hydromon.cli.main import main
     from hydromon.report import audit as audit_report
 
-    def disk_full(result, directory):
+    def disk_full(result, directory, *what):
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(audit_report, "write_report", disk_full)

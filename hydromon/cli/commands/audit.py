@@ -135,7 +135,8 @@ def run(args) -> int:
         print(summary(result), flush=True)
     if args.report:
         try:
-            path = write_report(result, args.report)
+            what = Path(args.file).name + (f", rig {args.rig}" if args.rig else "")
+            path = write_report(result, args.report, what)
         except OSError as exc:
             raise ValueError(f"--report {args.report!r}: {exc.strerror or exc} (the result above is complete)") from None
         print(f"hydromon audit: report -> {path}", file=sys.stderr)

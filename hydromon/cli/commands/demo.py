@@ -8,8 +8,8 @@ import threading
 from hydromon.cli.stop import stop_on_signals
 
 NAME = "demo"
-HELP = ("everything in one process on an embedded zenoh session: simulated rigs, monitor, recorder; "
-        "shows the live grades and writes an MCAP recording")
+HELP = ("everything in one process on an embedded zenoh session: simulated rigs, monitor, recorder and the "
+        "web dashboard; shows the live grades and the dashboard's URL, and writes an MCAP recording")
 
 
 def add_arguments(parser) -> None:
@@ -28,6 +28,27 @@ def add_arguments(parser) -> None:
                         help="zenoh's own JSON5 configuration file for the embedded session (TLS, access "
                              "control...); where it names no listen or connect endpoint the session listens on "
                              "a free loopback port")
+    parser.add_argument("--dashboard-port", type=int, default=0, metavar="PORT",
+                        help="port of the web dashboard on 127.0.0.1 (default 0: a free one; its URL is printed)")
+    parser.add_argument("--no-dashboard", action="store_true", help="run without the web dashboard")
+    parser.add_argument("--foxglove-port", type=int, default=None, metavar="PORT",
+                        help="also serve the bus to Foxglove on this port of 127.0.0.1 (0 = a free one; default: not)")
+
+
+def _dashboard(args):
+    """``attach`` of :func:`hydromon.bus.demo.run_demo`: the dashboard (and Foxglove bridge) on the
+    demo's session, graded on the ranges the demo's monitor uses."""
+    def attach(session, namespace):
+        from hydromon.dashboard.service import open_live
+        from monitor.ranges import Ranges
+
+        dash = open_live(session, namespace=namespace, port=args.dashboard_port, fallback_ranges=Ranges.default(),
+                         wait_s=0.5, foxglove_port=args.foxglove_port)
+        lines = [f"dashboard: {dash.url}"]
+        if dash.foxglove is not None:
+            lines.append(f"Foxglove: {dash.foxglove.address} (layout: docs/dashboard.md)")
+        return dash.close, lines
+    return attach
 
 
 def run(args) -> int:
@@ -45,13 +66,19 @@ def run(args) -> int:
         from hydromon.bus.session import load_config_file
 
         load_config_file(args.zenoh_config)  # a bad file: one line, before the kernels load
+    for name, port in (("--dashboard-port", args.dashboard_port), ("--foxglove-port", args.foxglove_port)):
+        if port is not None and not 0 <= port <= 65535:
+            raise ValueError(f"{name} {port!r} must be 0..65535")
+    if args.no_dashboard and args.foxglove_port is not None:
+        raise ValueError("--foxglove-port is served beside the dashboard; drop --no-dashboard")
     spec = load_fleet(args.fleet) if args.fleet else default_fleet()
     stop = threading.Event()
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
     try:
         result = run_demo(duration=args.duration or None, out_dir=args.out, rate=args.rate,
                           namespace=args.namespace, fleet=spec, stop_event=stop,
-                          live=False if args.plain else None, zenoh_config=args.zenoh_config)
+                          live=False if args.plain else None, zenoh_config=args.zenoh_config,
+                          attach=None if args.no_dashboard else _dashboard(args))
     finally:
         restore_signals()
     print(summary(result, spec.ids))

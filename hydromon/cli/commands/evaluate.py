@@ -30,8 +30,9 @@ def add_arguments(parser) -> None:
                              "about 0.1 s of CPU per second of data)")
     parser.add_argument("--plots", metavar="DIR",
                         help="also write PNGs into DIR: the grade over time with each graded parameter's "
-                             "grade, the estimates with +-3 standard errors and the health-band edges, the "
-                             "signals with the replaced glitches and the gaps")
+                             "grade, the graded parameters' estimates with +-3 standard errors against their health "
+                             "bands (coloured zones), the other parameters' estimates, the signals with the "
+                             "replaced glitches and the gaps")
 
 
 def run(args) -> int:

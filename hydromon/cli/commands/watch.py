@@ -11,7 +11,8 @@ from hydromon.cli.stop import stop_on_signals
 
 NAME = "watch"
 HELP = ("show the latest health of every rig on the bus, the rigs that need attention first and the "
-        "parameters that set their grade (asks the running monitors, then follows <namespace>/rig/*/health)")
+        "parameters that set their grade (asks the running monitors, then follows <namespace>/rig/*/health), "
+        "and the latest grade and status changes (<namespace>/rig/*/event)")
 
 DEFAULT_TOP = 40
 PLAIN_EVERY_S = 5.0
@@ -76,6 +77,8 @@ def run(args) -> int:
                 monitors, zenoh.handlers.FifoChannel(10_000), history=True)
             # subscribe first: a verdict published while the query runs is not missed
             sub = None if args.once else session.declare_subscriber(key, zenoh.handlers.FifoChannel(100_000))
+            events = None if args.once else session.declare_subscriber(
+                f"{args.namespace}/rig/{chunk}/event", zenoh.handlers.FifoChannel(10_000))
             # every monitor answers for the rigs it holds (sharded monitors each for theirs)
             for reply in session.get(key, timeout=args.wait):
                 if reply.ok is not None and reply.ok.key_expr is not None:
@@ -87,9 +90,9 @@ def run(args) -> int:
             if not board.latest:
                 print(f"hydromon watch: no monitor answered in {args.wait:g} s; following {key} for the next "
                       "verdicts (is a monitor running on this namespace, and reachable?)", file=sys.stderr, flush=True)
-            _follow(sub, live, board, args, stop, clock, top, render_board_plain, render_board_rich, key)
-            sub.undeclare()
-            live.undeclare()
+            _follow((sub, events), live, board, args, stop, clock, top, render_board_plain, render_board_rich, key)
+            for decl in (sub, events, live):
+                decl.undeclare()
     finally:
         restore_signals()
     print(render_board_plain(board, clock(), top))
@@ -113,9 +116,9 @@ def _print_once(board, args, orjson, render_plain, now, top) -> int:
     return 0
 
 
-def _follow(sub, live, board, args, stop, clock, top, render_plain, render_rich, key) -> None:
-    """Take every verdict and every monitor's coming and going as they come; redraw the board
-    until Ctrl-C or --duration."""
+def _follow(subs, live, board, args, stop, clock, top, render_plain, render_rich, key) -> None:
+    """Take every verdict, event and monitor's coming and going as they come (``subs``: the health
+    and event subscribers); redraw the board until Ctrl-C or --duration."""
     import zenoh
 
     deadline = None if args.duration is None else clock() + args.duration
@@ -123,8 +126,10 @@ def _follow(sub, live, board, args, stop, clock, top, render_plain, render_rich,
     def drain():
         while (m := live.try_recv()) is not None:
             board.monitor(str(m.key_expr).rsplit("/", 1)[1], m.kind == zenoh.SampleKind.PUT)
-        while (m := sub.try_recv()) is not None:
+        while (m := subs[0].try_recv()) is not None:
             board.update(str(m.key_expr), m.payload.to_bytes(), clock())
+        while (m := subs[1].try_recv()) is not None:
+            board.event(str(m.key_expr), m.payload.to_bytes(), clock())
 
     def done():
         return stop.is_set() or (deadline is not None and clock() >= deadline)

@@ -1,0 +1,132 @@
+"""The dashboard's state without a bus or a browser: rows worst first with why and since when, the
+flags of rigs whose verdict is not current, history decimation, and the event log across a
+restart."""
+
+from __future__ import annotations
+
+import orjson
+
+from hydromon.contract import Health
+from hydromon.dashboard.eventlog import EventLog
+from hydromon.dashboard.fleet import SILENT, Fleet, row_order
+from hydromon.engine.board import NO_MONITOR
+from hydromon.dashboard.history import RigHistory
+from monitor.ranges import Ranges
+
+
+def health(grade="health", level=0, status="ok", node="mon1", seq=9, k_sv=2.5e-4, **kw) -> bytes:
+    params = {"K_sv": k_sv, "f_c": 10.0}
+    h = Health(seq=seq, t=seq / 100, grade=grade, level=level, confidence=0.8, params=params,
+               param_grades={"K_sv": grade, "f_c": "health"}, status=status, std_errors={"K_sv": 1e-6},
+               node=node, **kw)
+    return h.model_dump_json().encode()
+
+
+def test_rows_worst_first_why_in_words_and_since_when():
+    f = Fleet()
+    f.put_monitor("mon1", True, 0.0)
+    f.put_health("a", health(), 1.0)
+    f.put_health("b", health("fault", 4, k_sv=1e-4), 1.0)
+    f.put_health("c", health("average", 2, status="bad-input"), 1.0)
+    f.put_health("d", health("fault", 4, status="stale"), 1.0)
+    f.put_health("e", b"{not json", 1.0)
+    t = f.tick(1.1)
+    order = [r["rig"] for r in sorted(t.rows, key=row_order)]
+    assert order == ["c", "b", "d", "a"]
+    assert t.counts["grades"] == {"fault": 2, "average": 1, "health": 1} and t.counts["invalid"] == 1
+    rows = {r["rig"]: r for r in t.rows}
+    assert rows["b"]["why"] == ["valve gain 0.0001 m/V"]  # no ranges: the value and its unit
+    f.set_ranges("b", Ranges.default())
+    t = f.tick(1.2)
+    assert [r["rig"] for r in t.rows] == ["b"]  # only what changed is pushed
+    assert t.rows[0]["why"][0].startswith("valve gain -") and "baseline" in t.rows[0]["why"][0]
+    # since: when the grade last changed, not when the latest verdict came
+    f.put_health("b", health("fault", 4, k_sv=1.1e-4), 5.0)
+    f.put_health("a", health("sub-health", 1), 5.0)
+    rows = {r["rig"]: r for r in f.tick(5.1).rows}
+    assert rows["b"]["since"] == 1.0 and rows["b"]["arrived"] == 5.0
+    assert rows["a"]["since"] == 5.0
+
+
+def test_flags_no_monitor_and_silent():
+    f = Fleet()
+    f.put_monitor("mon1", True, 0.0)
+    f.put_monitor("mon2", True, 0.0)
+    f.put_health("a", health(node="mon1"), 1.0)
+    f.put_health("b", health(node="mon2"), 1.0)
+    f.put_health("c", health(node=None), 1.0)
+    assert all(r["flag"] is None for r in f.tick(1.1).rows)
+    f.put_monitor("mon1", False, 1.2)
+    t = f.tick(1.3)
+    assert {r["rig"]: r["flag"] for r in t.rows} == {"a": NO_MONITOR}
+    assert [(e["kind"], e["node"], e["to"]) for e in t.events] == [("monitor", "mon1", "gone")]
+    assert "1 rig(s) without a monitor" in t.events[0]["reason"]
+    # a verdict that names no monitor: flagged once no monitor at all is up
+    f.put_monitor("mon2", False, 1.4)
+    f.tick(1.5)
+    flags = {r["rig"]: r["flag"] for r in f.fleet_snapshot(1.5)["rows"]}
+    assert flags == {"a": NO_MONITOR, "b": NO_MONITOR, "c": NO_MONITOR}
+    f.put_monitor("mon2", True, 2.0)
+    f.put_health("b", health(node="mon2"), 2.0)
+    rows = {r["rig"]: r["flag"] for r in f.tick(2.1).rows}
+    assert rows["b"] is None and rows["c"] is None
+    assert {r["rig"]: r["flag"] for r in f.tick(4.5).rows} == {"b": SILENT, "c": SILENT}
+    # rows flagged go last
+    f.put_health("d", health(node="mon2"), 4.5)
+    f.tick(4.5)
+    assert [r["rig"] for r in f.fleet_snapshot(4.5)["rows"]] == ["d", "a", "b", "c"]
+
+
+def test_a_verdict_of_an_earlier_start_of_the_monitor_is_not_taken():
+    f = Fleet()
+    f.put_monitor("mon1", True, 0.0)
+    f.put_health("a", health("fault", 4, epoch=7), 1.0)
+    f.tick(1.0)
+    f.put_health("a", health("health", 0, epoch=6), 1.1)  # late, from before the monitor's restart
+    assert f.tick(1.2).rows == [] and f.not_shown == 1
+    f.put_health("a", health("health", 0, epoch=8), 1.3)
+    assert [r["grade"] for r in f.tick(1.4).rows] == ["health"]
+    # as watch: not a verdict from a monitor that is not up, nor another's while the rig's own is up
+    f.put_health("a", health("fault", 4, node="ghost"), 1.5)
+    f.put_monitor("mon2", True, 1.5)
+    f.tick(1.6)
+    f.put_health("a", health("fault", 4, node="mon2"), 1.7)
+    assert f.tick(1.8).rows == [] and f.not_shown == 3
+    f.put_monitor("mon1", False, 1.9)
+    f.put_health("a", health("fault", 4, node="mon2"), 1.9)  # its own gone, another takes the rig over
+    assert [(r["grade"], r["node"], r["flag"]) for r in f.tick(2.0).rows] == [("fault", "mon2", None)]
+
+
+def test_history_keeps_a_point_a_second_and_one_every_six():
+    hist = RigHistory()
+    h = orjson.loads(health())
+    for i in range(100):  # 10 s at 10 per second
+        hist.take(i * 0.1, h)
+    pts = hist.points()
+    assert pts["wall"] == [float(i) for i in range(10)]
+    assert pts["value"]["K_sv"][0] == 2.5e-4 or abs(pts["value"]["K_sv"][0] - 2.5e-4) < 1e-10
+    assert pts["value"]["m"][0] is None  # not in the verdict
+    assert hist.points(since=7.0)["wall"] == [8.0, 9.0]
+    for i in range(100, 4000):  # past the fine ring's 5 minutes: the coarse one reaches back
+        hist.take(i * 0.1, h)
+    pts = hist.points()
+    assert pts["wall"][0] == 0.0 and pts["wall"][1] == 6.0
+    assert pts["wall"] == sorted(pts["wall"]) and pts["wall"][-1] == 399.0
+
+
+def test_event_log_survives_a_restart_with_its_acknowledgements(tmp_path):
+    path = tmp_path / "state" / "events.jsonl"
+    log = EventLog(path)
+    a = log.add({"wall": 1.0, "rig": "r1", "kind": "grade", "from": "health", "to": "fault", "reason": "x"})
+    log.add({"wall": 2.0, "rig": "r2", "kind": "status", "from": "ok", "to": "stale", "reason": ""})
+    log.ack(a["id"], "valve replaced", "anna", 3.0)
+    log.close()
+    with open(path, "ab") as f:
+        f.write(b'{"id": 3, "wall": 4.0, "rig": "r3"')  # a line cut short by a crash
+    log = EventLog(path)
+    assert log.skipped == 1
+    got = log.recent()
+    assert [e["rig"] for e in got] == ["r2", "r1"]
+    assert got[1]["ack"] == {"wall": 3.0, "comment": "valve replaced", "by": "anna"}
+    assert log.add({"rig": "r4"})["id"] == 3
+    log.close()
