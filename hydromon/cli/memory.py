@@ -13,16 +13,34 @@ MEMORY_HELP = ("the estimators' memory in seconds: older data fades (forgetting 
                f"{MIN_MEMORY_S:g}")
 
 
+GROWING = ("none", "inf", "growing")
+"""What ``--memory`` takes for a growing window (the estimators keep everything)."""
+
+
 def add_memory_argument(parser, help: str = MEMORY_HELP) -> None:
-    parser.add_argument("--memory", type=float, default=None, metavar="S", help=help)
+    parser.add_argument("--memory", default=None, metavar="S", help=help)
 
 
 def check_memory(args) -> None:
-    """A ``--memory`` under MIN_MEMORY_S (or not finite) is a ValueError naming it."""
+    """Read ``--memory`` into seconds (None: a growing window) in ``args.memory``: a number of
+    seconds or a time with its unit (``90``, ``2min``), or ``none``; under MIN_MEMORY_S (or
+    not finite) it is a ValueError naming it."""
     m = args.memory
+    if isinstance(m, str):
+        if m.strip().lower() in GROWING:
+            args.memory = None
+            return
+        from hydromon.store.magnitudes import parse
+        from hydromon.store.quantities import MEMORY
+
+        try:
+            m = parse(m, MEMORY, "--memory")
+        except ValueError as exc:
+            raise ValueError(f"{exc}, or none") from None
     if m is not None and not (math.isfinite(m) and m >= MIN_MEMORY_S):
         raise ValueError(f"--memory {m!r} s: at least {MIN_MEMORY_S:g} s (the estimators need a few seconds of "
-                         "rows inside their memory)")
+                         "rows inside their memory), or none (a growing window)")
+    args.memory = m
 
 
 def options_from_args(args, sample_rate: float):

@@ -1,12 +1,14 @@
 """``--config FILE``: a rig's constants for a record that carries none (a CSV), or to override
 the ones an MCAP recorded. The file is the JSON of ``hydromon.contract.RigConfig``, as a rig
-publishes it on ``<ns>/rig/<id>/config`` (SI; missing fields take the paper's values)."""
+publishes it on ``<ns>/rig/<id>/config`` (SI, or texts with their unit such as ``"12MPa"``;
+missing fields take the paper's values)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-CONFIG_HELP = ("rig constants as JSON (the RigConfig published on <ns>/rig/<id>/config, SI; missing fields "
+CONFIG_HELP = ("rig constants as JSON (the RigConfig published on <ns>/rig/<id>/config, SI, or a text with its "
+               "unit, e.g. \"p_s\": \"12MPa\"; missing fields "
                "take the paper's values, sample_rate included): a CSV carries none, so without it the paper's "
                "rig at 100 Hz is assumed; for an MCAP it replaces the recorded constants")
 
@@ -30,9 +32,21 @@ def config_from_args(args):
         raise ValueError(f"--config {path}: no such file") from None
     except (OSError, UnicodeError) as exc:
         raise ValueError(f"--config {path}: cannot be read ({exc})") from None
+    import json
+
+    from hydromon.store import quantities
+
     try:
-        return RigConfig.model_validate_json(text)
-    except ValidationError as exc:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--config {path}: not JSON ({exc})") from None
+    try:
+        if isinstance(data, dict):  # magnitudes may carry their unit: "p_s": "12MPa"
+            data = quantities.convert(data, quantities.CONFIG, "")
+        return RigConfig.model_validate(data)
+    except ValueError as exc:
+        if not isinstance(exc, ValidationError):
+            raise ValueError(f"--config {path}: {exc}") from None
         first = exc.errors()[0]
         where = ".".join(str(x) for x in first.get("loc", ())) or "the document"
         raise ValueError(f"--config {path}: {where}: {first.get('msg')} ({exc.error_count()} error(s))") from None

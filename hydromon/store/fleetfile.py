@@ -10,15 +10,17 @@ A fleet file is a table of shared settings and a list of rigs, e.g. in TOML::
     severity = 0.35                  # plant_sim.degradation.degrade, 0 new .. 1 fault
     profile = "paper-var:period=10"  # plant_sim.profiles.parse_profile
     noise = "realistic"              # none | realistic | stress | pct:F
-    effects = { stribeck_friction = 40.0, sensor_delay = 2 }
+    effects = { stribeck_friction = "40N", sensor_delay = 2 }
     [[rigs]]
     id = "press-2"
     table4 = 3                       # the paper's Table 4 group 1..5 as the plant
-    params = { f_c = 30.0 }          # PlantParams overrides, applied last
+    params = { f_c = "30N" }         # PlantParams overrides, applied last
 
 Effects are ``NAME = MAGNITUDE`` with the names of ``plant_sim.params.EFFECT_NAMES``
 (:data:`EFFECT_FIELDS` gives the field and unit each sets); ``sensor_delay_loop = true``
-puts the sensor delay inside the control loop. Everything is validated here, at the edge:
+puts the sensor delay inside the control loop. Every magnitude (effects, params, base,
+config) is a number in SI or a text with its unit ("2.5um", "12MPa"), and must lie in its
+sensible range (``hydromon.store.quantities``). Everything is validated here, at the edge:
 a bad value raises ValueError naming it.
 """
 
@@ -32,6 +34,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from hydromon.contract import RigConfig, valid_rig_id
+from hydromon.store import quantities
+from hydromon.store.magnitudes import parse as parse_magnitude
 from plant_sim.degradation import degrade, degrade_relative, table4_group
 from plant_sim.live import PlantFleet
 from plant_sim.noise import noise_model
@@ -41,7 +45,7 @@ from plant_sim.validation import brief_error
 
 __all__ = [
     "EFFECT_FIELDS", "RigSpec", "FleetSpec", "parse_effect", "load_fleet", "default_fleet",
-    "spread_fleet", "rig_seeds", "brief_error", "parse_controller",
+    "spread_fleet", "rig_seeds", "brief_error", "parse_controller", "effect_magnitude",
 ]
 
 EFFECT_FIELDS = {
@@ -58,16 +62,19 @@ assert set(EFFECT_FIELDS) == set(EFFECT_NAMES)
 
 
 def parse_effect(text: str) -> tuple[str, float]:
-    """``"NAME=MAGNITUDE"`` -> ``(NAME, MAGNITUDE)``, e.g. ``"stribeck_friction=40"``."""
+    """``"NAME=MAGNITUDE"`` -> ``(NAME, MAGNITUDE in SI)``, e.g. ``"stribeck_friction=40N"``,
+    ``"valve_dead_band=2.5um"`` (a bare number is SI; outside its sensible range it is refused)."""
     name, eq, value = text.partition("=")
     name = name.strip()
     if not eq:
         raise ValueError(f"effect {text!r}: expected NAME=MAGNITUDE")
+    return name, effect_magnitude(name, value)
+
+
+def effect_magnitude(name: str, value) -> float:
+    """An effect's magnitude (a number in SI, or a text with its unit) in SI, checked."""
     _check_effect_name(name)
-    try:
-        return name, float(value)
-    except ValueError:
-        raise ValueError(f"effect {name!r}: magnitude {value.strip()!r} is not a number") from None
+    return parse_magnitude(value, quantities.EFFECTS[name], name)
 
 
 def parse_controller(text: str) -> Controller:
@@ -86,9 +93,9 @@ def parse_controller(text: str) -> Controller:
         if key is None or not eq:
             raise ValueError(f"controller {text!r}: {item!r} is not ki=K_I or kff=K_FF")
         try:
-            fields[key] = float(value)
-        except ValueError:
-            raise ValueError(f"controller {text!r}: {value.strip()!r} is not a number") from None
+            fields[key] = parse_magnitude(value, quantities.CONTROLLER[key], key.replace("K_", "k").lower())
+        except ValueError as exc:
+            raise ValueError(f"controller {text!r}: {exc}") from None
     try:
         return Controller(**fields)
     except ValidationError as exc:
@@ -175,6 +182,16 @@ class RigSpec(BaseModel):
             raise ValueError(f"table4 group {v!r} must be 1..5")
         return v
 
+    @field_validator("params", "base", mode="before")
+    @classmethod
+    def _params_si(cls, v, info):
+        return quantities.convert(v, quantities.PLANT, f"{info.field_name} ") if isinstance(v, dict) else v
+
+    @field_validator("config", mode="before")
+    @classmethod
+    def _config_si(cls, v):
+        return quantities.convert(v, quantities.CONFIG, "config ") if isinstance(v, dict) else v
+
     @field_validator("params", "base")
     @classmethod
     def _params(cls, v):
@@ -205,8 +222,7 @@ class RigSpec(BaseModel):
         if isinstance(v, (list, tuple)):  # ["NAME=MAG", ...] as on the command line
             return dict(parse_effect(item) for item in v)
         if isinstance(v, dict):
-            for name in v:
-                _check_effect_name(name)
+            return {name: effect_magnitude(name, mag) for name, mag in v.items()}
         return v
 
     @field_validator("profile")
@@ -303,6 +319,11 @@ class FleetSpec(BaseModel):
     config: RigConfig = Field(default_factory=RigConfig)
     seed: int = 0
     rigs: list[RigSpec] = Field(min_length=1)
+
+    @field_validator("config", mode="before")
+    @classmethod
+    def _config_si(cls, v):
+        return quantities.convert(v, quantities.CONFIG, "config ") if isinstance(v, dict) else v
 
     @model_validator(mode="after")
     def _unique(self) -> "FleetSpec":

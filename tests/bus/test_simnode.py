@@ -9,6 +9,8 @@ import time
 
 import numpy as np
 import pytest
+
+from hydromon.store import quantities
 import zenoh
 from hypothesis import given
 from hypothesis import strategies as st
@@ -103,7 +105,7 @@ def test_toml_and_json_fleet_files(tmp_path):
 def test_every_effect_name_maps_to_its_field():
     assert set(EFFECT_FIELDS) == set(EFFECT_NAMES)
     for name, (field, _unit) in EFFECT_FIELDS.items():
-        mag = 3.0 if name == "sensor_delay" else 0.25
+        mag = 0.5 * quantities.EFFECTS[name].hi  # a sensible magnitude of each (a valve's stop at 0.5 mm)
         eff = RigSpec(id="r", effects={name: mag}).effects_model()
         assert getattr(eff, field) == mag
         assert eff.model_copy(update={field: Effects.model_fields[field].default}) == Effects()
@@ -120,9 +122,13 @@ def test_every_effect_name_maps_to_its_field():
     (dict(id="r", table4=6), "table4 group 6"),
     (dict(id="r", table4=1, severity=0.2), "not both"),
     (dict(id="r", params={"mass": 3.0}), "mass"),
-    (dict(id="r", params={"m": -3.0}), "m: Input should be greater than 0"),
+    (dict(id="r", params={"m": -3.0}), "params m -3 kg is outside 0..100000 kg"),
     (dict(id="r", effects={"sensor_delay": 1.5}), "sensor_delay 1.5"),
-    (dict(id="r", effects={"entrained_air": 2.0}), "air_fraction"),
+    (dict(id="r", effects={"entrained_air": 2.0}), "entrained_air 2 is outside 0..0.2"),
+    (dict(id="r", effects={"valve_dead_band": 2.5}), "valve_dead_band 2.5 m is outside 0..1 mm: give a unit, e.g. 2.5um"),
+    (dict(id="r", params={"K_sv": "0.25"}), "K_sv 0.25 m/V is outside 0..10 mm/V"),
+    (dict(id="r", config={"p_s": 120}), "config p_s 120 Pa is outside 0.1..100 MPa"),
+    (dict(id="r", base={"f_c": "5V"}), "V is not a unit of N"),
     (dict(id="r", profile="zigzag"), "zigzag"),
     (dict(id="r", noise="loud"), "loud"),
 ])

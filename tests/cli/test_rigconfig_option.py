@@ -46,8 +46,8 @@ def test_a_csv_is_evaluated_with_the_constants_given(other_rig, tmp_path, capsys
 
 
 @pytest.mark.parametrize("text, match", [
-    ("{", "--config .*rig.json: .*error"),
-    ('{"p_s": -1}', "--config .*rig.json: p_s: "),
+    ("{", "--config .*rig.json: not JSON"),
+    ('{"p_s": -1}', "--config .*rig.json: p_s -1 Pa is outside 0.1..100 MPa: give a unit, e.g. 12MPa"),
     ('{"nonsense": 1}', "--config .*rig.json: nonsense: "),
 ])
 def test_a_bad_config_file_is_a_clear_error_naming_it(tmp_path, capsys, text, match):

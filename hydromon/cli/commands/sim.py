@@ -18,6 +18,8 @@ KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (
 
 
 def add_arguments(parser) -> None:
+    from hydromon.store.quantities import EFFECTS, unit_table
+
     g = parser.add_argument_group("rigs (default: the paper's five Table 4 rigs table4-g1..g5)")
     g.add_argument("--fleet", metavar="FILE", help="fleet file (.toml or .json) listing the rigs")
     g.add_argument("--rigs", type=int, metavar="N",
@@ -28,10 +30,9 @@ def add_arguments(parser) -> None:
                    "steps:low=1.5,high=2.5, file:path=u.csv (default paper-var)")
     g.add_argument("--noise", metavar="MODEL", help="none | realistic | stress | pct:F (default none)")
     g.add_argument("--effect", action="append", default=None, metavar="NAME=MAG",
-                   help="effect on every rig, e.g. stribeck_friction=40 (repeatable; names: "
-                   "stribeck_friction [N], valve_saturation [m], valve_dead_band [m], "
-                   "supply_pressure_sag [Pa/(m^3/s)], entrained_air [-], sensor_delay [samples], "
-                   "load_offset [N])")
+                   help="effect on every rig, a magnitude with its unit (a bare number is SI), e.g. "
+                   "valve_dead_band=2.5um (repeatable; names, SI unit and sensible range: "
+                   + "; ".join(f"{n} [{u}] {r}" for n, u, r, _ in unit_table(EFFECTS)) + ")")
     g.add_argument("--sensor-delay-loop", action="store_true", default=None,
                    help="the sensor delay acts inside the control loop too")
     g.add_argument("--seed", type=int, default=None, help="base seed of noise (and random severities)")
