@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["to_json", "summary", "write_report"]
+__all__ = ["to_json", "summary", "write_report", "cause_row"]
 
 
 def _num(x):
@@ -60,6 +60,17 @@ def summary(result) -> str:
         f"{ch} {g[ch]['nrmse_nominal']:.3f} -> {g[ch]['nrmse_extended']:.3f}"
         for ch in ("x1", "x3", "x4", "x5") if ch in g))
     return "\n".join(lines)
+
+
+def cause_row(result) -> list[str]:
+    """``[cause, free-run gain, note]`` of one rig, for the table of a recording's rigs: the cause
+    (with its fitted magnitude) and the held-out free-run gain of the extension it names."""
+    best = result.best
+    cause = result.cause + (f" ({_effect_text(best.effect)})" if best is not None and best.effect else "")
+    if not result.confident:
+        cause += " (not confident)"
+    gain = f"{best.gain:.2f}" if best is not None else "-"
+    return [cause, gain, (result.note or "").split(";")[0]]
 
 
 def _effect_text(effect: dict) -> str:

@@ -6,16 +6,28 @@ import math
 
 from hydromon.contract import PARAM_NAMES, PARAM_UNITS
 from hydromon.engine.evaluate import Evaluation
+from hydromon.engine.words import CONFIDENCE_HELP, SE_UNKNOWN, confidence_words, placed, se_text, why_words
 from hydromon.store.sampling import RATE_TOL
 from monitor.ident_options import IdentOptions
 from monitor.identify import V_MIN
 from monitor.refine import REFINED
 
-__all__ = ["to_json", "render"]
+__all__ = ["to_json", "render", "render_many", "why"]
 
 
 def _num(v: float):
     return float(v) if math.isfinite(v) else None
+
+
+def _health(ev: Evaluation) -> dict:
+    a = ev.assessment
+    return {"grade": a.grade, "params": a.params, "param_grades": a.param_grades}
+
+
+def why(ev: Evaluation) -> list[str]:
+    """The parameters that carry the grade, in words with the size of their change
+    (``hydromon.engine.words.why_words``)."""
+    return why_words(_health(ev), ev.ranges, units=True)
 
 
 def to_json(ev: Evaluation) -> dict:
@@ -31,7 +43,8 @@ def to_json(ev: Evaluation) -> dict:
         "params": {k: _num(a.params[k]) for k in PARAM_NAMES},
         "std_errors": {k: _num(a.std_errors[k]) for k in PARAM_NAMES},
     }
-    if ev.glitches is not None:  # added keys
+    out["why"] = why(ev)  # added keys
+    if ev.glitches is not None:
         out["glitches_replaced"] = ev.glitches
     out["x1_outside_chambers"] = ev.x1_clamped
     out["implausible"] = list(a.implausible)  # impossible estimates: the grade is withheld
@@ -65,6 +78,11 @@ def render(ev: Evaluation, console=None) -> None:
                   f"status {ev.status}")
     if ev.uncalibrated is not None:
         console.print(f"[yellow]not graded: {ev.uncalibrated}[/yellow]")
+    words = why(ev)
+    if words:
+        console.print("why: " + "; ".join(words), markup=False)
+    if a.param_levels:
+        console.print(confidence_words(a.confidence, *placed(a.param_grades)), markup=False)
     if ev.memory_s is not None:  # the default, a growing window, needs no line
         console.print(f"estimators' memory {ev.memory_s:g} s (--memory): data older than that fades")
     t = Table(show_header=True, header_style="bold")
@@ -76,26 +94,19 @@ def render(ev: Evaluation, console=None) -> None:
         t.add_column(col, justify=just)
     grades = a.param_grades
     for k in PARAM_NAMES:
-        row = [k, f"{a.params[k]:.5g}", f"{a.std_errors[k]:.3g}"]
+        row = [k, f"{a.params[k]:.5g}", se_text(a.std_errors[k])]
         if ref is not None:
-            row += [f"{ref.params[k]:.5g}", f"{ref.std_errors[k]:.3g}"] if k in REFINED else ["", ""]
+            row += [f"{ref.params[k]:.5g}", se_text(ref.std_errors[k])] if k in REFINED else ["", ""]
         t.add_row(*row, PARAM_UNITS[k], grades.get(k, ""))
     console.print(t)
-    graded = ev.ranges.params if ev.ranges is not None else {}
+    if any(not math.isfinite(a.std_errors[k]) for k in PARAM_NAMES):
+        console.print(f"[dim]{SE_UNKNOWN}[/dim]")
     if not a.converged:
         # the reason a person needs here is the record's length, not the valve's excitation
         need = (ev.options or IdentOptions()).min_rows
         console.print(f"[yellow]not converged: the chamber and valve equations need {need} rows each before a "
                       f"grade (about {need / r.config.sample_rate:g} s of samples after the filters' warm-up); "
                       f"this record has {len(r.samples)} samples: give a longer one[/yellow]")
-    elif "K_sv" in graded and "K_sv_omega_sv2" not in graded:
-        w2, s = a.params["omega_sv2"], a.std_errors["omega_sv2"]
-        rel = s / abs(w2) if math.isfinite(s) and math.isfinite(w2) and w2 else math.inf
-        why = ("" if rel < 0.05 else  # the reason matters where it shows: an unexcited valve
-               f": it needs the valve's dynamics excited, which a record that starts mid-run on a smooth command "
-               f"lacks (here omega^2 {'has no SE' if math.isinf(rel) else f'+-{100 * rel:.2g} %'})")
-        console.print(f"[dim]the valve is graded on its static gain K_sv; K_sv omega^2 is reported, not graded{why}; "
-                      "--ranges paper grades it as Table 3 prints it[/dim]")
     if r.config_changes:
         console.print(f"[yellow]the rig's config changed {r.config_changes} time(s): evaluated the samples after the "
                       f"last change (sample {r.skipped}, t = {r.t[0]:g} s) with its constants, as the live monitor "
@@ -128,3 +139,34 @@ def render(ev: Evaluation, console=None) -> None:
     if ref is not None:
         console.print(f"refined: whole-record prediction-error fit, {'ok' if ref.ok else 'FAILED'}: {ref.message}; "
                       "the grade is the streaming pipeline's")
+
+
+def render_many(evs: dict, errors: dict, source: str, console=None) -> None:
+    """Every rig of a recording: one row each, the rigs that need attention first (bad input,
+    then the worst grade), with why in words; ``errors`` the rigs that could not be evaluated."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = console or Console()
+    n = len(evs) + len(errors)
+    console.print(f"[bold]{source}[/bold]  {n} rigs", markup=True)
+    t = Table(show_header=True, header_style="bold")
+    for col, just in (("rig", "left"), ("grade", "left"), ("conf", "right"), ("status", "left"),
+                      ("samples", "right"), ("why", "left")):
+        t.add_column(col, justify=just)
+
+    def order(item):
+        rig, ev = item
+        return (ev.status != "bad-input", ev.status != "uncalibrated", -ev.assessment.level, rig)
+
+    for rig, ev in sorted(evs.items(), key=order):
+        a = ev.assessment
+        t.add_row(rig, a.grade, f"{a.confidence:.2f}", ev.status, str(len(ev.recording.samples)),
+                  "; ".join(why(ev)) or "-")
+    for rig, message in sorted(errors.items()):
+        t.add_row(rig, "-", "-", "not evaluated", "-", message)
+    console.print(t)
+    console.print(f"[dim]{CONFIDENCE_HELP}; one rig in full: hydromon evaluate {source} --rig ID[/dim]")
+    if any(ev.uncalibrated for ev in evs.values()):
+        console.print("[yellow]uncalibrated: no ranges were made for the rig's constants, so it is not graded; "
+                      f"hydromon evaluate {source} --rig ID says why[/yellow]")

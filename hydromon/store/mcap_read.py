@@ -28,7 +28,8 @@ from hydromon.store.mcap_layout import (
     empty_message, opened, recover_hint, rig_topic, time_ns,
 )
 
-__all__ = ["read_recording", "read_summary", "read_samples", "read_rig_config", "stored_configs", "check_summary_crc"]
+__all__ = ["read_recording", "read_summary", "read_samples", "read_rig_config", "stored_configs", "check_summary_crc",
+           "sample_rigs"]
 
 log = logging.getLogger(__name__)
 
@@ -222,6 +223,11 @@ def _rig_topics(src, leaf: str, rig: str | None) -> dict[str, str]:
     if rig is not None and not valid_rig_id(rig):
         raise ValueError(f"rig id {rig!r} must be 1-64 chars of [A-Za-z0-9_-]")
     return found
+
+
+def sample_rigs(src) -> list[str]:
+    """The ids of the rigs whose samples a recording holds, sorted."""
+    return sorted(_rig_topics(src, "sample", None))
 
 
 def read_samples(src, rig: str | None = None, rejected: list | None = None,

@@ -24,7 +24,7 @@ from hydromon.store.csvfile import read_csv
 from hydromon.store.sampling import check_sampling, time_jitter
 from monitor.drive import command_for_drive
 
-__all__ = ["Recording", "load_recording"]
+__all__ = ["Recording", "load_recording", "recording_rigs"]
 
 
 def _after_last_change(messages: list[tuple[int, RigConfig]], stored: list[RigConfig], n: int,
@@ -79,6 +79,22 @@ def _named(name: str, exc: Exception) -> str:
     """The error's message, prefixed by the file's name unless it starts with it already."""
     msg = str(exc)
     return msg if msg.startswith(name) else f"{name}: {msg}"
+
+
+def recording_rigs(path: str | Path, rig: str | None = None) -> list[str | None]:
+    """The rigs an evaluation of ``path`` covers: ``[rig]`` when one is named, ``[None]`` for a
+    CSV (one rig) or a file that cannot be listed (:func:`load_recording` then says why), else
+    every rig whose samples an MCAP holds, by id."""
+    path = Path(path)
+    if rig is not None or path.suffix.lower() != ".mcap" or not path.is_file():
+        return [rig]
+    from hydromon.store import mcap_read
+
+    try:
+        rigs = mcap_read.sample_rigs(str(path))
+    except (ValueError, OSError):
+        return [None]
+    return rigs if len(rigs) > 1 else [None]
 
 
 def load_recording(path: str | Path, rig: str | None = None, config: RigConfig | None = None) -> Recording:

@@ -48,7 +48,6 @@ def no_bus(monkeypatch):
 # -- 1. sim --to-csv / --to-mcap: no data loss ---------------------------------------------
 
 @pytest.mark.parametrize("extra, needle", [
-    ([], "choose one (--rig ID)"),
     (["--rig", "nope"], "no rig 'nope' in the fleet"),
     (["--rig", "table4-g1", "--duration", "inf"], "--duration inf must be a finite number > 0 s"),
     (["--rig", "table4-g1", "--duration", "0.001"], "shorter than one sample"),

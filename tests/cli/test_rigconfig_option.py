@@ -21,9 +21,11 @@ def other_rig():
 
 
 def _grade(args, capsys):
-    assert main(["evaluate", *args, "--json"]) == 0
+    code = main(["evaluate", *args, "--json"])
     captured = capsys.readouterr()
-    return json.loads(captured.out), captured.err
+    doc = json.loads(captured.out)
+    assert code == (0 if doc["status"] == "ok" else 1)
+    return doc, captured.err
 
 
 def test_a_csv_is_evaluated_with_the_constants_given(other_rig, tmp_path, capsys):
@@ -43,6 +45,7 @@ def test_a_csv_is_evaluated_with_the_constants_given(other_rig, tmp_path, capsys
     # a rig of other constants: no ranges were made for it, so it is reported, not graded
     assert (right["grade"], right["status"]) == ("unknown", "uncalibrated")
     assert (wrong["grade"], wrong["status"]) != ("unknown", "uncalibrated")  # taken for the reference rig
+    assert "p_s 1.4e+07" in right["uncalibrated"]
 
 
 @pytest.mark.parametrize("text, match", [

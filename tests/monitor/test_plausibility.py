@@ -42,8 +42,10 @@ def _evaluate_json(run, tmp_path, capsys, scale=(1.0, 1.0, 1.0, 1.0, 1.0), offse
     samples = run.samples * np.array(scale) + np.array(offset)
     path = tmp_path / "rec.csv"
     path.write_text(csv_text(run.t, samples))
-    assert main(["evaluate", str(path), "--json"]) == 0
-    return json.loads(capsys.readouterr().out)
+    code = main(["evaluate", str(path), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == (0 if doc["status"] == "ok" else 1)  # bad input is not a pass (hydromon.cli.verdicts)
+    return doc
 
 
 def test_si_input_is_graded(g1_run, tmp_path, capsys):
@@ -63,7 +65,7 @@ def test_input_in_wrong_units_sign_or_zero_is_not_graded(g1_run, tmp_path, capsy
     assert doc["status"] == "bad-input" and doc["grade"] == "unknown" and doc["level"] is None, what
     assert doc["confidence"] == 0.0 and doc["implausible"], what
     assert all(doc["params"][k] < 0 for k in doc["implausible"]), what
-    assert main(["evaluate", str(tmp_path / "rec.csv")]) == 0
+    assert main(["evaluate", str(tmp_path / "rec.csv")]) == 1
     assert "physically impossible" in capsys.readouterr().out
 
 

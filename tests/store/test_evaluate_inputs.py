@@ -126,7 +126,7 @@ def test_a_config_change_evaluates_the_samples_after_it_with_the_new_constants(r
     ev = evaluate(rec)
     assert ev.assessment.params == live  # as the live monitor, which restarted the rig's estimates there
     assert to_json(ev)["config_changes"] == {"count": 1, "skipped_samples": 250}
-    assert main(["evaluate", str(p)]) == 0
+    assert main(["evaluate", str(p)]) == 1  # 3.5 s on ranges not made for F_L 3000 N: not graded to be trusted
     cap = capsys.readouterr()
     out = _text(cap.out)
     assert "rig g4: 350 samples, 3.5 s" in out

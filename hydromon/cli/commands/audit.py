@@ -14,13 +14,19 @@ from hydromon.cli.rigconfig import add_config_argument, config_from_args, has_re
 NAME = "audit"
 HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named model extension explains it"
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+EXAMPLES = (
+    'hydromon audit db.csv --report audit-report',
+    'hydromon audit tour.mcap --json   # every rig of a recording',
+)
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE", help="CSV with header t,ug,x1,x3,x4,x5 (SI) or an MCAP recording")
-    parser.add_argument("--rig", metavar="ID", help="MCAP: which rig (needed if it holds several)")
+    parser.add_argument("--rig", metavar="ID", help="MCAP: audit only this rig (default: every rig of the recording, "
+                        "one row each; --report DIR then writes DIR/<rig>/)")
     add_config_argument(parser)
-    parser.add_argument("--json", action="store_true", help="print one JSON document on stdout")
+    parser.add_argument("--json", action="store_true", help="print one JSON document on stdout (for a recording of "
+                        "several rigs, one per rig id)")
     parser.add_argument("--report", metavar="DIR", help="write audit.md and PNG plots into DIR")
     parser.add_argument("--train-fraction", type=float, default=0.7,
                         help="leading fraction of the record used for fitting (default 0.7)")
@@ -115,10 +121,9 @@ class Progress:
 
 
 def run(args) -> int:
-    from hydromon.report.audit import summary, to_json, write_report
     from hydromon.cli.checks import writable_dir
-    from monitor.audit import AuditOptions, audit
-    from monitor.audit.audit import impossible_params
+    from hydromon.store.recording import recording_rigs
+    from monitor.audit import AuditOptions
 
     try:  # the options first, then the file
         options = AuditOptions(train_fraction=args.train_fraction)
@@ -126,21 +131,76 @@ def run(args) -> int:
         raise ValueError(f"--train-fraction {args.train_fraction!r}: {exc}") from None
     if args.report:
         writable_dir("--report", args.report)
-    config, samples, stretch = load(args.file, args.rig, config_from_args(args))
-    result = audit(samples, config, options, progress=Progress())
+    config = config_from_args(args)
+    rigs = recording_rigs(args.file, args.rig)
+    if len(rigs) == 1:
+        return _one(args, rigs[0], config, options)
+    print(f"hydromon audit: {args.file}: {len(rigs)} rigs ({', '.join(rigs)}), each audited on its own (--rig ID "
+          "for one)", file=sys.stderr)
+    return _many(args, rigs, config, options)
+
+
+def _audit(args, rig, config, options):
+    from monitor.audit import audit
+
+    config, samples, stretch = load(args.file, rig, config)
+    return audit(samples, config, options, progress=Progress()), stretch
+
+
+def _one(args, rig, config, options) -> int:
+    from hydromon.report.audit import summary, to_json
+
+    result, stretch = _audit(args, rig, config, options)
     # the result first: a report that cannot be written (disk full) must not take it along
     if args.json:
         print(json.dumps({**to_json(result), "stretch": stretch}), flush=True)
     else:
         print(summary(result), flush=True)
-    if args.report:
+    _report(args, result, args.report, rig)
+    return _exit(result)
+
+
+def _many(args, rigs, config, options) -> int:
+    from hydromon.report.audit import cause_row, to_json
+
+    results, errors = {}, {}
+    for rig in rigs:
         try:
-            what = Path(args.file).name + (f", rig {args.rig}" if args.rig else "")
-            path = write_report(result, args.report, what)
+            results[rig] = _audit(args, rig, config, options)
+        except ValueError as exc:  # one rig's record cannot be audited: the others still are
+            errors[rig] = str(exc)
+    if args.json:
+        doc = {rig: {**to_json(r), "stretch": st} for rig, (r, st) in results.items()}
+        doc.update({rig: {"error": msg} for rig, msg in errors.items()})
+        print(json.dumps(dict(sorted(doc.items()))), flush=True)
+    else:
+        rows = [["rig", "cause", "free-run gain", "note"]]
+        rows += [[rig, *cause_row(r)] for rig, (r, _) in sorted(results.items())]
+        rows += [[rig, "not audited", "-", msg] for rig, msg in sorted(errors.items())]
+        widths = [max(len(r[i]) for r in rows) for i in range(3)]
+        print("\n".join("  ".join([*(c.ljust(w) for c, w in zip(r[:3], widths)), r[3]]).rstrip() for r in rows))
+        print(f"one rig in full: hydromon audit {args.file} --rig ID", flush=True)
+    for rig, (r, _) in results.items():
+        _report(args, r, None if args.report is None else str(Path(args.report) / rig), rig)
+    return max([_exit(r) for r, _ in results.values()] + [1] * len(errors))
+
+
+def _report(args, result, directory, rig=None) -> None:
+    from hydromon.report.audit import write_report
+
+    if directory:
+        try:
+            what = Path(args.file).name + (f", rig {rig}" if rig else "")
+            path = write_report(result, directory, what)
         except OSError as exc:
-            raise ValueError(f"--report {args.report!r}: {exc.strerror or exc} (the result above is complete)") from None
+            raise ValueError(f"--report {directory!r}: {exc.strerror or exc} (the result above is complete)") from None
         print(f"hydromon audit: report -> {path}", file=sys.stderr)
-    # a record that does not obey the model (wrong units, signs, zeros or rig constants) is
-    # audited and reported, but its cause "none" does not mean "the model is right": a script
-    # must not read it as a pass
+
+
+def _exit(result) -> int:
+    """1 for a record that does not obey the model (wrong units, signs, zeros or rig constants):
+    it is audited and reported, but its cause "none" does not mean "the model is right", and a
+    script must not read it as a pass (hydromon.cli.verdicts)."""
+    from monitor.audit.audit import impossible_params
+
     return 1 if impossible_params(result.params_nominal) else 0

@@ -8,6 +8,7 @@ import sys
 import threading
 import time
 from contextlib import ExitStack
+from pathlib import Path
 
 from hydromon.cli.busopts import add_bus_arguments, session_from_args
 from hydromon.cli.stop import stop_on_signals
@@ -15,6 +16,10 @@ from hydromon.cli.stop import stop_on_signals
 NAME = "sim"
 HELP = "simulate rigs and publish their samples on the bus (or write a run to --to-csv/--to-mcap)"
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+EXAMPLES = (
+    'hydromon sim --noise realistic --mode client --connect tcp/127.0.0.1:7447',
+    'hydromon sim --to-csv db.csv --duration 30 --rig table4-g2 --noise realistic --effect valve_dead_band=5um',
+)
 
 
 def add_arguments(parser) -> None:
@@ -48,12 +53,13 @@ def add_arguments(parser) -> None:
                    help="rig time to simulate [s] (default: until Ctrl-C; required with --to-*)")
     r.add_argument("--block", type=int, default=None, metavar="K",
                    help="samples per rig per step, >= 1 (default 10)")
-    r.add_argument("--to-csv", metavar="FILE", help="write one rig's run as CSV t,ug,x1,x3,x4,x5 (SI), no bus "
-                   "(written to a temporary file beside FILE, renamed into place when complete)")
+    r.add_argument("--to-csv", metavar="FILE", help="write the run as CSV t,ug,x1,x3,x4,x5 (SI), no bus: one rig "
+                   "into FILE; a fleet of several (without --rig) one file per rig, FILE-<rig>.csv, or DIR/<rig>.csv "
+                   "when FILE is a directory (each written to a temporary file beside it, renamed into place when "
+                   "complete)")
     r.add_argument("--to-mcap", metavar="FILE", help="write the fleet's run as an MCAP recording, no bus "
                    "(likewise written whole or not at all)")
-    r.add_argument("--rig", metavar="ID", help="with --to-csv/--to-mcap: write only this rig of the fleet "
-                   "(--to-csv needs it when the fleet has several)")
+    r.add_argument("--rig", metavar="ID", help="with --to-csv/--to-mcap: write only this rig of the fleet")
     add_bus_arguments(parser)
 
 
@@ -129,15 +135,34 @@ def check_args(args, spec) -> None:
     if args.to_csv and args.to_mcap and os.path.realpath(args.to_csv) == os.path.realpath(args.to_mcap):
         raise ValueError(f"--to-csv and --to-mcap name the same file {args.to_csv!r}")
     if args.to_csv:
-        simfiles.select_rig(spec, args.rig)
-        checks.writable_file("--to-csv", args.to_csv)
-        checks.fits_on_disk("--to-csv", args.to_csv, simfiles.file_bytes("csv", args.duration, h),
-                             f"{args.duration:g} s of one rig")
+        targets = csv_targets(args.to_csv, spec, args.rig)
+        if len(targets) > 1 and Path(args.to_csv).is_dir():
+            checks.writable_dir("--to-csv", args.to_csv)
+        for _, path in targets:
+            checks.writable_file("--to-csv", path)
+        checks.fits_on_disk("--to-csv", targets[0][1], len(targets) * simfiles.file_bytes("csv", args.duration, h),
+                             f"{args.duration:g} s of {len(targets)} rig(s)")
     if args.to_mcap:
         n_rigs = len(simfiles.select_rig(spec, args.rig).rigs) if args.rig else len(spec.rigs)
         checks.writable_file("--to-mcap", args.to_mcap)
         checks.fits_on_disk("--to-mcap", args.to_mcap, simfiles.file_bytes("mcap", args.duration, h, n_rigs),
                              f"{args.duration:g} s of {n_rigs} rig(s)")
+
+
+def csv_targets(to_csv: str, spec, rig: str | None) -> list[tuple[str | None, Path]]:
+    """``(rig id, path)`` of each CSV ``--to-csv`` writes: one rig (``--rig``, or a fleet of one)
+    into the file itself; every rig of a larger fleet into ``FILE-<rig>.csv``, or ``DIR/<rig>.csv``
+    when the name is a directory (or ends with a slash)."""
+    from hydromon.store import simfiles
+
+    if rig is not None or len(spec.rigs) == 1:
+        simfiles.select_rig(spec, rig)  # the rig must be in the fleet
+        return [(rig, Path(to_csv))]
+    if Path(to_csv).is_dir() or to_csv.endswith(("/", os.sep)):
+        return [(r, Path(to_csv) / f"{r}.csv") for r in spec.ids]
+    p = Path(to_csv)
+    stem = p.with_suffix("") if p.suffix.lower() == ".csv" else p
+    return [(r, stem.parent / f"{stem.name}-{r}.csv") for r in spec.ids]
 
 
 def run(args) -> int:
@@ -158,16 +183,18 @@ def run(args) -> int:
         # (or Ctrl-C) leaves the old file, if any, as it was
         with ExitStack() as files:
             if args.to_csv:
-                f = files.enter_context(replace_on_success(args.to_csv, "w", newline=""))
-                rows = simfiles.write_csv(spec, args.duration, f, rig=args.rig,
-                                         on_block=Progress(f"--to-csv {args.to_csv}"))
+                targets = csv_targets(args.to_csv, spec, args.rig)
+                for rig, path in targets:
+                    f = files.enter_context(replace_on_success(path, "w", newline=""))
+                    rows = simfiles.write_csv(spec, args.duration, f, rig=rig, on_block=Progress(f"--to-csv {path}"))
             if args.to_mcap:
                 one = simfiles.select_rig(spec, args.rig) if args.rig else spec
                 f = files.enter_context(replace_on_success(args.to_mcap, "wb"))
                 n = simfiles.write_mcap(one, args.duration, f, namespace=args.namespace,
                                        on_block=Progress(f"--to-mcap {args.to_mcap}"))
         if args.to_csv:
-            print(f"hydromon sim: {rows} samples of 1 rig -> {args.to_csv}", file=sys.stderr)
+            print(f"hydromon sim: {rows} samples of {len(targets)} rig(s) -> {', '.join(str(p) for _, p in targets)}",
+                  file=sys.stderr)
         if args.to_mcap:
             print(f"hydromon sim: {n} messages of {len(one.rigs)} rig(s) -> {args.to_mcap}", file=sys.stderr)
         return 0
