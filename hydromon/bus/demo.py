@@ -152,9 +152,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     path = _recording_path(out_dir)
     close_attached, lines = None, []
 
-    print("hydromon demo: loading the numerical kernels (compiled once on a fresh machine, "
-          "about a minute)...", file=log, flush=True)
-    warm_up()
+    warm_up()  # on a cold cache this compiles for about a minute: hydromon.cli.main says so then
     # on a free loopback port (another if it was taken before the session bound it)
     with _demo_session(zenoh_config) as (session, endpoint):
         result = DemoResult(endpoint=endpoint, truth={r.id: true_grade(r) for r in spec.rigs})

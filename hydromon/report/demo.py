@@ -6,6 +6,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 from hydromon.report.cells import GRADE_STYLE, TABLE_PARAMS, fmt_value
+from hydromon.report.words import CONFIDENCE_HELP, known_ranges, why_words
 
 if TYPE_CHECKING:
     from hydromon.bus.demo import DemoResult
@@ -52,22 +53,30 @@ def render_rich(ids, health: dict, truth: dict, title: str = ""):
 
 
 def summary(result: DemoResult, ids) -> str:
-    """The closing report: where the recording is, final grade next to the true grade."""
+    """The closing report: where the recording is, final grade next to the true grade and why,
+    what conf means, and what to do next with the recording."""
     lines = []
     for path in result.recordings:
         lines.append(f"recording: {path} ({result.recorded} messages)")
-    head = ["rig", "final grade", "true grade", "status", "conf", ""]
+    head = ["rig", "final grade", "true grade", "right", "status", "conf", "why"]
     rows = [head]
     for rig in ids:
         h = result.health.get(rig, {})
         truth = result.truth.get(rig)
-        mark = "" if truth is None or not h else ("ok" if h.get("grade") == truth else "MISMATCH")
-        rows.append([rig, h.get("grade", "-"), truth or "?", h.get("status", "-"),
-                     f"{h['confidence']:.2f}" if h else "-", mark])
+        mark = "?" if truth is None or not h else ("yes" if h.get("grade") == truth else "NO")
+        rows.append([rig, h.get("grade", "-"), truth or "?", mark, h.get("status", "-"),
+                     f"{h['confidence']:.2f}" if h else "-", "; ".join(why_words(h, known_ranges(h), units=True))
+                     or "-" if h else "-"])
     widths = [max(len(r[i]) for r in rows) for i in range(len(head))]
-    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() or "-" for r in rows]
     known = sum(1 for g in result.truth.values() if g is not None)
     lines.append(f"{result.matches}/{known} rigs at their true grade after {result.samples} samples per rig")
+    lines.append(CONFIDENCE_HELP)
+    if result.recordings:
+        rec = result.recordings[0]
+        lines += ["next:",
+                  f"  hydromon evaluate {rec}      # every rig graded again from the recording, worst first",
+                  f"  hydromon replay {rec} --direct > verdicts.jsonl   # the monitor's verdicts again"]
     return "\n".join(lines)
 
 

@@ -8,8 +8,13 @@ import threading
 from hydromon.cli.stop import stop_on_signals
 
 NAME = "demo"
+KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
 HELP = ("everything in one process on an embedded zenoh session: simulated rigs, monitor, recorder and the "
         "web dashboard; shows the live grades and the dashboard's URL, and writes an MCAP recording")
+EXAMPLES = (
+    'hydromon demo --duration 10',
+    'hydromon demo --fleet plant.toml --out recordings/',
+)
 
 
 def add_arguments(parser) -> None:

@@ -13,6 +13,10 @@ NAME = "watch"
 HELP = ("show the latest health of every rig on the bus, the rigs that need attention first and the "
         "parameters that set their grade (asks the running monitors, then follows <namespace>/rig/*/health), "
         "and the latest grade and status changes (<namespace>/rig/*/event)")
+EXAMPLES = (
+    'hydromon watch --once --mode client --connect tcp/127.0.0.1:7447',
+    "hydromon watch --rigs 'line1-*' --top 20",
+)
 
 DEFAULT_TOP = 40
 PLAIN_EVERY_S = 5.0
@@ -22,8 +26,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--rigs", default="*", metavar="PATTERN",
                         help="only rigs whose id matches this key-expression chunk, e.g. 'line1-*' (default all)")
     parser.add_argument("--once", action="store_true",
-                        help="ask the monitors for their latest health, print it and exit (exit status 1 if "
-                             "no monitor answered with a rig)")
+                        help="ask the monitors for their latest health, listen up to --wait seconds for the verdicts "
+                             "they publish (which give each its age), print and exit; exit status 0 when every rig "
+                             "is graded with status ok, 1 when one is not (bad-input, uncalibrated, stale, "
+                             "converging) or no monitor answered")
     parser.add_argument("--json", action="store_true",
                         help="with --once: print {\"rigs\": {id: health}, \"counts\": {grade: n}} on stdout")
     parser.add_argument("--wait", type=float, default=2.0, metavar="S",
@@ -62,7 +68,9 @@ def run(args) -> int:
     key = f"{args.namespace}/rig/{chunk}/health"
     top = args.top or None
     board = Board(ns=args.namespace)
+    ages = Ages(board)
     clock = time.monotonic
+    start = clock()
     stop = threading.Event()
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
     try:
@@ -76,30 +84,72 @@ def run(args) -> int:
             live = None if args.once else session.liveliness().declare_subscriber(
                 monitors, zenoh.handlers.FifoChannel(10_000), history=True)
             # subscribe first: a verdict published while the query runs is not missed
-            sub = None if args.once else session.declare_subscriber(key, zenoh.handlers.FifoChannel(100_000))
+            sub = session.declare_subscriber(key, zenoh.handlers.FifoChannel(100_000))
             events = None if args.once else session.declare_subscriber(
                 f"{args.namespace}/rig/{chunk}/event", zenoh.handlers.FifoChannel(10_000))
             # every monitor answers for the rigs it holds (sharded monitors each for theirs)
             for reply in session.get(key, timeout=args.wait):
                 if reply.ok is not None and reply.ok.key_expr is not None:
-                    board.update(str(reply.ok.key_expr), reply.ok.payload.to_bytes(), clock())
+                    ages.update(str(reply.ok.key_expr), reply.ok.payload.to_bytes(), clock(), published=False)
                 if stop.is_set():
                     break
             if args.once:
-                return _print_once(board, args, orjson, render_board_plain, clock(), top)
+                _listen(sub, ages, stop, clock, start + args.wait)
+                return _print_once(board, ages, args, orjson, render_board_plain, clock(), top)
             if not board.latest:
                 print(f"hydromon watch: no monitor answered in {args.wait:g} s; following {key} for the next "
                       "verdicts (is a monitor running on this namespace, and reachable?)", file=sys.stderr, flush=True)
-            _follow((sub, events), live, board, args, stop, clock, top, render_board_plain, render_board_rich, key)
+            _follow((sub, events), live, ages, args, stop, clock, top, render_board_plain, render_board_rich, key)
             for decl in (sub, events, live):
                 decl.undeclare()
     finally:
         restore_signals()
-    print(render_board_plain(board, clock(), top))
+    print(render_board_plain(board, clock(), top, ages.since))
     return 0
 
 
-def _print_once(board, args, orjson, render_plain, now, top) -> int:
+class Ages:
+    """The board, and when each rig's current verdict was published by the clock of this watch
+    (``since``; None: unknown). A monitor's answer to the query is its last verdict, of unknown
+    age; a verdict published while watch listens is as old as its arrival, and a re-send of the
+    same verdict (a silent rig's, marked stale) keeps the age it had."""
+
+    def __init__(self, board):
+        self.board = board
+        self.since: dict[str, float | None] = {}
+        self._verdict: dict[str, tuple] = {}
+
+    def update(self, key: str, payload: bytes, now: float, published: bool = True) -> None:
+        from hydromon.contract import split_rig_key
+
+        if not self.board.update(key, payload, now):
+            return
+        rig = split_rig_key(key, self.board.ns)[0]
+        h = self.board.latest[rig]
+        verdict = (h.get("seq"), h.get("t"), h.get("node"), h.get("epoch"))
+        if verdict == self._verdict.get(rig) and self.since.get(rig) is not None:
+            return  # the same verdict again: its age goes on
+        self._verdict[rig] = verdict
+        self.since[rig] = now if published else None
+
+
+def _listen(sub, ages, stop, clock, until) -> None:
+    """Take the verdicts published until every rig that is not silent (stale, or its monitor
+    gone) has published one, or ``until``: their ages."""
+    from hydromon.engine.board import NO_MONITOR
+
+    while not stop.is_set():
+        while (m := sub.try_recv()) is not None:
+            ages.update(str(m.key_expr), m.payload.to_bytes(), clock())
+        board = ages.board
+        waiting = [r for r in board.latest if board.status(r) not in ("stale", NO_MONITOR) and ages.since.get(r) is None]
+        if not waiting or clock() >= until:
+            return
+        stop.wait(0.05)
+
+
+def _print_once(board, ages, args, orjson, render_plain, now, top) -> int:
+    from hydromon.cli.verdicts import exit_status
     from hydromon.engine.board import NO_MONITOR
 
     if args.json:
@@ -108,26 +158,27 @@ def _print_once(board, args, orjson, render_plain, now, top) -> int:
                             "invalid": board.invalid, "not_shown": board.not_shown,
                             "no_monitor": sorted(r for r in board.latest if board.status(r) == NO_MONITOR)}).decode())
     elif board.latest:  # an empty table says nothing the error below does not
-        print(render_plain(board, now, top))
+        print(render_plain(board, now, top, ages.since))
     if not board.latest:
         print(f"hydromon watch: no monitor answered with a rig's health in {args.wait:g} s (is one running on "
               f"namespace {args.namespace!r}, and reachable? --connect ENDPOINT)", file=sys.stderr)
         return 1
-    return 0
+    return exit_status(board.status(r) for r in board.latest)
 
 
-def _follow(subs, live, board, args, stop, clock, top, render_plain, render_rich, key) -> None:
+def _follow(subs, live, ages, args, stop, clock, top, render_plain, render_rich, key) -> None:
     """Take every verdict, event and monitor's coming and going as they come (``subs``: the health
     and event subscribers); redraw the board until Ctrl-C or --duration."""
     import zenoh
 
+    board = ages.board
     deadline = None if args.duration is None else clock() + args.duration
 
     def drain():
         while (m := live.try_recv()) is not None:
             board.monitor(str(m.key_expr).rsplit("/", 1)[1], m.kind == zenoh.SampleKind.PUT)
         while (m := subs[0].try_recv()) is not None:
-            board.update(str(m.key_expr), m.payload.to_bytes(), clock())
+            ages.update(str(m.key_expr), m.payload.to_bytes(), clock())
         while (m := subs[1].try_recv()) is not None:
             board.event(str(m.key_expr), m.payload.to_bytes(), clock())
 
@@ -140,12 +191,12 @@ def _follow(subs, live, board, args, stop, clock, top, render_plain, render_rich
         from rich.live import Live
 
         console = Console()
-        with Live(render_rich(board, clock(), top, title, console.width), console=console, refresh_per_second=2,
-                  transient=True) as live:
+        with Live(render_rich(board, clock(), top, title, console.width, ages.since), console=console,
+                  refresh_per_second=2, transient=True) as screen:  # not "live": drain() reads that one
             while not done():
                 stop.wait(0.5)
                 drain()
-                live.update(render_rich(board, clock(), top, title, console.width))
+                screen.update(render_rich(board, clock(), top, title, console.width, ages.since))
         drain()
         return
     next_print = clock()
@@ -153,6 +204,6 @@ def _follow(subs, live, board, args, stop, clock, top, render_plain, render_rich
         drain()
         if clock() >= next_print:
             next_print += PLAIN_EVERY_S
-            print(render_plain(board, clock(), top) + "\n", flush=True)
+            print(render_plain(board, clock(), top, ages.since) + "\n", flush=True)
         stop.wait(0.2)
     drain()
