@@ -1,17 +1,21 @@
 """``hydromon``: one entry point; each subcommand is a module in hydromon/cli/commands.
 
-A command module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``,
-and ``KERNELS`` if it runs the compiled numerical kernels (see :func:`_compile_notice`).
+A command module defines ``NAME``, ``HELP``, ``EXAMPLES`` (command lines shown at the end of its
+``--help``), ``add_arguments(parser)`` and ``run(args) -> int``, ``DESCRIPTION`` if its ``--help``
+says more than ``HELP``, and ``KERNELS`` if it runs the compiled numerical kernels (see
+:func:`_compile_notice`). Exit statuses: ``hydromon.cli.verdicts``.
 Argument parsing lives here and in those modules only; the work they call is elsewhere.
 """
 
 from __future__ import annotations
 
 import argparse
+import difflib
 import importlib
 import logging
 import os
 import pkgutil
+import re
 import sys
 import threading
 
@@ -28,11 +32,72 @@ def _command_modules():
             yield importlib.import_module(f"hydromon.cli.commands.{info.name}")
 
 
+def version() -> str:
+    """hydromon's version, as installed."""
+    from importlib.metadata import PackageNotFoundError, version as installed
+
+    try:
+        return installed("hydromon")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with a command's examples at the end of its ``--help`` and "did you mean" for a
+    mistyped option or command (Python 3.11's argparse has no ``suggest_on_error``)."""
+
+    def __init__(self, *args, examples: tuple[str, ...] = (), **kw):
+        super().__init__(*args, **kw)
+        self.examples = tuple(examples)
+
+    def format_help(self) -> str:
+        text = super().format_help()
+        if self.examples:
+            text += "\nexamples:\n" + "".join(f"  {e}\n" for e in self.examples)
+        return text
+
+    def _options(self) -> list[str]:
+        return [o for a in self._actions for o in a.option_strings if o.startswith("--")]
+
+    def error(self, message: str):
+        m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if m:
+            near = difflib.get_close_matches(m.group(1), re.findall(r"'([^']*)'", m.group(2)), n=1)
+            if near:
+                message += f"; did you mean {near[0]}?"
+        super().error(message)
+
+    def parse_args(self, args=None, namespace=None):
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            # the command's own parser names the command and knows its options
+            command = getattr(ns, "command", None)
+            target = self._commands().get(command, self)
+            hints = []
+            for word in extras:
+                opt = word.split("=", 1)[0]
+                if opt.startswith("--"):
+                    near = difflib.get_close_matches(opt, target._options(), n=1, cutoff=0.7)
+                    if near:
+                        hints.append(f"{opt}: did you mean {near[0]}?")
+            target.error(f"unrecognized arguments: {' '.join(extras)}" + (f"; {'; '.join(hints)}" if hints else ""))
+        return ns
+
+    def _commands(self) -> dict:
+        for a in self._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                return a.choices
+        return {}
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="hydromon", description=DESCRIPTION)
+    parser = Parser(prog="hydromon", description=DESCRIPTION,
+                    examples=("hydromon demo", "hydromon evaluate FILE.mcap", "hydromon COMMAND --help"))
+    parser.add_argument("--version", action="version", version=f"hydromon {version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for mod in _command_modules():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
+        p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
+                           examples=getattr(mod, "EXAMPLES", ()))
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run, _kernels=getattr(mod, "KERNELS", False))
     return parser

@@ -8,6 +8,10 @@ from pathlib import Path
 NAME = "bench"
 HELP = "measure the performance figures (core, batch, replay, naive baseline, memory, transport, live)"
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+EXAMPLES = (
+    'hydromon bench --quick',
+    'hydromon bench --json --live-seconds 60',
+)
 
 def add_arguments(parser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON document on stdout")

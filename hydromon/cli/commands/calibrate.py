@@ -10,6 +10,9 @@ NAME = "calibrate"
 HELP = ("health ranges from labelled runs: your own labelled recordings (--labelled LIST), or simulated runs of the "
         "reference rig labelled by the method's x1 thresholds")
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+EXAMPLES = (
+    'hydromon calibrate --out ranges.json --runs 200 --noise realistic',
+)
 
 
 def add_arguments(parser) -> None:

@@ -14,6 +14,9 @@ NAME = "commission"
 HELP = "make a rig's own health ranges from a recording of it in good condition (its baseline, ranges and noise)"
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
 PROGRESS_AFTER_S = 3.0  # the twin's progress goes to stderr once a run takes longer than this [s]
+EXAMPLES = (
+    'hydromon commission good-day.mcap --rig press-1 --out press-1.ranges.json',
+)
 
 
 def add_arguments(parser) -> None:

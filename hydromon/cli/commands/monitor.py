@@ -14,6 +14,10 @@ from hydromon.cli.stop import stop_on_signals
 NAME = "monitor"
 HELP = "grade every rig on <namespace>/rig/*/sample and publish <namespace>/rig/<id>/health"
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+EXAMPLES = (
+    'hydromon monitor --mode client --connect tcp/127.0.0.1:7447',
+    "hydromon monitor --rigs 'line1-*' --memory 10min",
+)
 
 
 def add_arguments(parser) -> None:

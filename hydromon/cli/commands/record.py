@@ -11,6 +11,9 @@ from hydromon.cli.stop import stop_on_signals
 
 NAME = "record"
 HELP = "record everything under <namespace>/** into MCAP files (json + jsonschema channels)"
+EXAMPLES = (
+    'hydromon record --out tour.mcap --mode client --connect tcp/127.0.0.1:7447',
+)
 
 
 def add_arguments(parser) -> None:

@@ -9,6 +9,9 @@ import sys
 NAME = "recover"
 HELP = ("rewrite a truncated or damaged MCAP recording into a valid one with every surviving message "
         "(exit 1 when damaged chunks or messages without a channel had to be left out)")
+EXAMPLES = (
+    'hydromon recover cut-off.mcap -o whole.mcap',
+)
 
 
 def add_arguments(parser) -> None:

@@ -12,6 +12,10 @@ from hydromon.cli.stop import stop_on_signals
 
 NAME = "replay"
 HELP = "publish an MCAP recording on the bus (paced), or grade it in-process with --direct"
+EXAMPLES = (
+    'hydromon replay tour.mcap --rate 10',
+    'hydromon replay recordings/table4-realistic.mcap --direct --out replayed.jsonl',
+)
 
 
 def KERNELS(args) -> bool:  # noqa: N802 (read by hydromon.cli.main like the other commands' flag)

@@ -8,6 +8,10 @@ import sys
 NAME = "reproduce"
 HELP = "the paper's Tables 2, 3 and 4, ours side by side with the paper's"
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+EXAMPLES = (
+    'hydromon reproduce',
+    'hydromon reproduce --noise realistic --seeds 5',
+)
 
 
 def add_arguments(parser) -> None:

@@ -9,6 +9,9 @@ from hydromon.cli.stop import stop_on_signals
 
 NAME = "router"
 HELP = "run a zenoh router (other nodes --connect to it) until Ctrl-C/SIGTERM or --duration"
+EXAMPLES = (
+    'hydromon router --listen tcp/0.0.0.0:7447',
+)
 
 
 def add_arguments(parser) -> None:
