@@ -3,7 +3,7 @@
 A command module defines ``NAME``, ``HELP``, ``EXAMPLES`` (command lines shown at the end of its
 ``--help``), ``add_arguments(parser)`` and ``run(args) -> int``, ``DESCRIPTION`` if its ``--help``
 says more than ``HELP``, and ``KERNELS`` if it runs the compiled numerical kernels (see
-:func:`_compile_notice`). Exit statuses: ``hydromon.cli.verdicts``.
+:func:`_compile_notice`). Exit statuses: ``hydromon.cli.exits``.
 Argument parsing lives here and in those modules only; the work they call is elsewhere.
 """
 

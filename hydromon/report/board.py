@@ -2,7 +2,7 @@
 
 The rigs come in the order :func:`hydromon.engine.board.attention_order` gives; the "why"
 column says in words which parameters carry the rig's grade and how far they moved
-(``hydromon.report.words.why_words``), last, where a long text does not push the numbers apart.
+(``hydromon.engine.words.why_words``), last, where a long text does not push the numbers apart.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from __future__ import annotations
 from hydromon.contract import GRADES
 from hydromon.engine.board import Board, attention_order
 from hydromon.report.cells import GRADE_STYLE, TABLE_PARAMS, fmt_value
-from hydromon.report.words import CONFIDENCE_HELP, known_ranges, why_words
+from hydromon.engine.words import CONFIDENCE_HELP, known_ranges, why_words
 
 __all__ = ["BOARD_HEAD", "AGE_UNKNOWN", "board_columns", "board_counts", "board_events", "board_rows",
            "render_board_plain",

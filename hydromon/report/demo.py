@@ -6,7 +6,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 from hydromon.report.cells import GRADE_STYLE, TABLE_PARAMS, fmt_value
-from hydromon.report.words import CONFIDENCE_HELP, known_ranges, why_words
+from hydromon.engine.words import CONFIDENCE_HELP, known_ranges, why_words
 
 if TYPE_CHECKING:
     from hydromon.bus.demo import DemoResult

@@ -374,7 +374,7 @@ def test_the_console_entry_keeps_status_and_output(tmp_path):
     csv = tmp_path / "r.csv"
     assert main(["sim", "--duration", "1", "--rig", "table4-g1", "--to-csv", str(csv)]) == 0
     out = run("evaluate", str(csv), "--json")
-    # the whole document, flushed; a record too short to grade exits 1 (hydromon.cli.verdicts)
+    # the whole document, flushed; a record too short to grade exits 1 (hydromon.cli.exits)
     assert out.returncode == (0 if orjson.loads(out.stdout)["status"] == "ok" else 1)
 
 

@@ -78,10 +78,10 @@ def test_replay_without_direct_compiles_nothing(monkeypatch):
 
 def test_every_command_that_runs_kernels_declares_it():
     parser = cli.build_parser()
-    declared = {name for name in ("audit", "bench", "calibrate", "evaluate", "monitor", "reproduce", "sim")
+    declared = {name for name in ("audit", "bench", "calibrate", "demo", "evaluate", "monitor", "reproduce", "sim")
                 if getattr(parser.parse_args([name] + (["f"] if name in ("audit", "evaluate") else [])),
                            "_kernels", False)}
-    assert declared == {"audit", "bench", "calibrate", "evaluate", "monitor", "reproduce", "sim"}
+    assert declared == {"audit", "bench", "calibrate", "demo", "evaluate", "monitor", "reproduce", "sim"}
 
 
 def test_the_notice_is_cancelled_when_the_command_ends(monkeypatch, tmp_path, capsys):

@@ -1,6 +1,6 @@
 """What a new user meets first on the command line: the version, an example in every command's
 help, a suggestion for a mistyped option or command, and one rule for the exit status of the
-commands that give a verdict (hydromon.cli.verdicts): 0 graded, 1 not graded or not to be
+commands that give a verdict (hydromon.cli.exits): 0 graded, 1 not graded or not to be
 trusted, 2 usage."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hydromon.cli.main import build_parser, main
-from hydromon.cli.verdicts import exit_status
+from hydromon.cli.exits import exit_status
 from hydromon.contract import RigConfig
 from hydromon.store.csvfile import csv_text
 from plant_sim.degradation import table4_group
@@ -109,7 +109,7 @@ def test_audit_exits_1_on_bad_input_as_evaluate_does(g2_run, tmp_path, capsys):
     assert main(["evaluate", str(bar), "--json"]) == 1
 
 
-def test_a_rig_graded_on_ranges_not_made_for_it_is_uncalibrated(tmp_path, capsys):
+def test_a_rig_without_ranges_made_for_its_constants_is_uncalibrated_and_exits_1(tmp_path, capsys):
     cfg = RigConfig(p_s=14e6, V10=0.0012, V20=0.0009)
     run = simulate(PaperVariable(), 10.0, params=table4_group(2), config=cfg)
     csv = _csv(tmp_path, run)
@@ -117,9 +117,11 @@ def test_a_rig_graded_on_ranges_not_made_for_it_is_uncalibrated(tmp_path, capsys
     conf.write_text(cfg.model_dump_json())
     assert main(["evaluate", str(csv), "--config", str(conf), "--json"]) == 1
     doc = json.loads(capsys.readouterr().out)
-    assert doc["status"] == "uncalibrated" and "p_s 1.4e+07 (ranges made for 1.2e+07)" in doc["uncalibrated"]
+    assert doc["status"] == "uncalibrated" and doc["grade"] == "unknown"
+    assert "p_s 1.4e+07 (ranges made for 1.2e+07)" in doc["uncalibrated"]
     assert main(["evaluate", str(csv), "--config", str(conf)]) == 1
-    assert "not to be trusted" in capsys.readouterr().out
+    out = " ".join(capsys.readouterr().out.split())
+    assert "not graded: " in out and "hydromon commission" in out
 
 
 def test_evaluate_explains_confidence_and_unknown_standard_errors_in_words(tmp_path, capsys):

@@ -72,7 +72,7 @@ def test_sensor_glitches_are_reported_and_do_not_move_the_grade(g4_run, tmp_path
 def test_short_recording_is_converging_with_null_level(g4_run, tmp_path, capsys):
     p = tmp_path / "short.csv"
     p.write_text(csv_text(g4_run.t[:200], g4_run.samples[:200]))
-    assert main(["evaluate", str(p), "--json"]) == 1  # not graded (hydromon.cli.verdicts)
+    assert main(["evaluate", str(p), "--json"]) == 1  # not graded (hydromon.cli.exits)
     doc = json.loads(capsys.readouterr().out)
     assert doc["status"] == "converging" and doc["level"] is None and doc["grade"] == "unknown"
     assert doc["std_errors"]["m"] is None  # inf: not identified yet, null in JSON

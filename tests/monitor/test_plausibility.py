@@ -44,7 +44,7 @@ def _evaluate_json(run, tmp_path, capsys, scale=(1.0, 1.0, 1.0, 1.0, 1.0), offse
     path.write_text(csv_text(run.t, samples))
     code = main(["evaluate", str(path), "--json"])
     doc = json.loads(capsys.readouterr().out)
-    assert code == (0 if doc["status"] == "ok" else 1)  # bad input is not a pass (hydromon.cli.verdicts)
+    assert code == (0 if doc["status"] == "ok" else 1)  # bad input is not a pass (hydromon.cli.exits)
     return doc
 
 

@@ -51,7 +51,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from hydromon.cli.verdicts import exit_status
+    from hydromon.cli.exits import exit_status
     from hydromon.report.evaluate import render, render_many, to_json
     from hydromon.store.recording import recording_rigs
 

@@ -149,7 +149,7 @@ def _listen(sub, ages, stop, clock, until) -> None:
 
 
 def _print_once(board, ages, args, orjson, render_plain, now, top) -> int:
-    from hydromon.cli.verdicts import exit_status
+    from hydromon.cli.exits import exit_status
     from hydromon.engine.board import NO_MONITOR
 
     if args.json:
