@@ -6,19 +6,25 @@ import math
 
 MIN_MEMORY_S = 10.0  # [s] the estimators need a few seconds of rows (min_rows 300 at 100 Hz) inside it
 
-MEMORY_HELP = ("the estimators' memory in seconds: older data fades (forgetting factor exp(-1/(S x rate))), so a "
-               "rig that degrades while watched is followed within about S (a valve losing half its gain: "
-               "graded deterioration 141 s after with --memory 120, 77 s with 60); default: none, a growing "
-               "window, right for a record or a short run but blind to a change late in a long one; at least "
-               f"{MIN_MEMORY_S:g}")
+LIVE_MEMORY_S = 60.0
+"""[s] The live monitor's default memory: the one of 60, 120, 300, 600 s and a growing window
+that follows a one-grade step of K_sv, f_c and both leakages within a 900 s run at realistic
+noise (``python benchmarks/memory_tradeoff.py``; the table in docs/method.md), at no cost in
+grades on rigs that do not change."""
+
+MEMORY_HELP = ("the estimators' memory in seconds, or a time with its unit (90, 2min): older data fades "
+               "(forgetting factor exp(-1/(S x rate))), so a rig that degrades while watched is followed within "
+               "a few S (docs/method.md has the measured times and what a memory costs); none: a growing window, "
+               f"which keeps everything and is blind to a change late in a long run; at least {MIN_MEMORY_S:g}")
 
 
 GROWING = ("none", "inf", "growing")
 """What ``--memory`` takes for a growing window (the estimators keep everything)."""
 
 
-def add_memory_argument(parser, help: str = MEMORY_HELP) -> None:
-    parser.add_argument("--memory", default=None, metavar="S", help=help)
+def add_memory_argument(parser, help: str, default: float | None = None) -> None:
+    """``--memory S`` with ``help`` (say the default in it); ``default`` [s] or None (growing)."""
+    parser.add_argument("--memory", default=default, metavar="S", help=help)
 
 
 def check_memory(args) -> None:
@@ -45,7 +51,7 @@ def check_memory(args) -> None:
 
 def options_from_args(args, sample_rate: float):
     """``monitor.ident_options.IdentOptions`` with the forgetting factor of ``--memory`` at
-    ``sample_rate`` [Hz] (None when not given: the defaults, no forgetting)."""
+    ``sample_rate`` [Hz] (None for a growing window: the defaults, no forgetting)."""
     check_memory(args)
     if args.memory is None:
         return None

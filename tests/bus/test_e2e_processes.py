@@ -149,7 +149,8 @@ def test_router_sim_monitor_recorder_as_processes_then_replay(tmp_path):
         bus = ["--mode", "client", "--connect", ep]
         # the recording is compared with direct replay, which has no clock: no re-sent stale health
         # if this machine is slow to stop the monitor after the sim (--stale-after)
-        procs.start("monitor", "monitor", "--node", "e2e", "--stale-after", "600", *bus)
+        # and direct replay's default memory, a growing window (the live monitor's default is 60 s)
+        procs.start("monitor", "monitor", "--node", "e2e", "--stale-after", "600", "--memory", "none", *bus)
         procs.start("record", "record", "--out", str(out), *bus)
         with open_session("client", connect=[ep]) as s:
             sub = s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(100_000))

@@ -103,3 +103,18 @@ def test_replay_direct_with_memory_grades_with_it(tmp_path):
     assert main(["replay", golden, "--direct", "--memory", "30", "--out", str(forgetful)]) == 0
     a, b = plain.read_bytes().splitlines(), forgetful.read_bytes().splitlines()
     assert len(a) == len(b) and a != b  # the same verdicts' count, other numbers
+
+
+def test_the_live_monitor_forgets_by_default_a_record_is_graded_whole():
+    """The monitor's default memory is LIVE_MEMORY_S (chosen by benchmarks/memory_tradeoff.py);
+    evaluate and replay --direct keep the whole record unless told (the goldens were graded so)."""
+    from hydromon.cli.main import build_parser
+    from hydromon.cli.memory import LIVE_MEMORY_S
+
+    parser = build_parser()
+    live = parser.parse_args(["monitor"])
+    opts = options_from_args(live, 100.0)
+    assert live.memory == LIVE_MEMORY_S == 60.0 and opts.lam == pytest.approx(math.exp(-1.0 / 6000.0))
+    for argv in (["evaluate", "x.csv"], ["replay", "x.mcap", "--direct"]):
+        assert options_from_args(parser.parse_args(argv), 100.0) is None, argv  # a growing window
+    assert options_from_args(parser.parse_args(["monitor", "--memory", "none"]), 100.0) is None

@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from hydromon.cli.memory import add_memory_argument, check_memory, options_from_args
+from hydromon.cli.memory import LIVE_MEMORY_S, MEMORY_HELP, add_memory_argument, check_memory, options_from_args
 from hydromon.cli.ranges import add_ranges_argument, ranges_from_args
 from hydromon.cli.rigconfig import (
     add_config_argument, config_from_args, constants_line, has_recorded_config,
@@ -38,7 +38,8 @@ def add_arguments(parser) -> None:
                         "every rig, in a table)")
     add_config_argument(parser)
     add_ranges_argument(parser)
-    add_memory_argument(parser)
+    add_memory_argument(parser, f"{MEMORY_HELP} (default: none, the whole record; --memory {LIVE_MEMORY_S:g} "
+                                "grades as a default live monitor would)")
     parser.add_argument("--refine", action="store_true",
                         help="also fit the force and chamber parameters to the whole record by prediction error "
                              "(monitor/refine.py: B + f_v at realistic sensor noise ~0.8 %% instead of ~4 %%; "

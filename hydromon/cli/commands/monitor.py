@@ -7,7 +7,7 @@ import threading
 import time
 
 from hydromon.cli.busopts import add_bus_arguments, session_from_args
-from hydromon.cli.memory import add_memory_argument, options_from_args
+from hydromon.cli.memory import LIVE_MEMORY_S, MEMORY_HELP, add_memory_argument, options_from_args
 from hydromon.cli.ranges import add_ranges_argument, ranges_from_args
 from hydromon.cli.stop import stop_on_signals
 
@@ -63,7 +63,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--group", default=None, metavar="NAME",
                         help="failover group: of the monitors of one group only the one that claimed first "
                              "publishes (default: one group per --rigs pattern)")
-    add_memory_argument(parser)
+    add_memory_argument(parser, f"{MEMORY_HELP} (default {LIVE_MEMORY_S:g}: a monitor runs for weeks and must "
+                                "follow a rig that degrades while it watches)", default=LIVE_MEMORY_S)
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads for the estimators when many samples arrive at once (rigs split "
                              "between them; same numbers for any N; default 1)")

@@ -6,7 +6,7 @@ import sys
 import threading
 
 from hydromon.cli.busopts import add_bus_arguments, session_from_args
-from hydromon.cli.memory import MEMORY_HELP, add_memory_argument, check_memory, options_from_args
+from hydromon.cli.memory import LIVE_MEMORY_S, MEMORY_HELP, add_memory_argument, check_memory, options_from_args
 from hydromon.cli.ranges import RANGES_HELP, add_ranges_argument, ranges_from_args
 from hydromon.cli.stop import stop_on_signals
 
@@ -51,8 +51,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", metavar="FILE", help="with --direct: write the health JSON lines here")
     add_ranges_argument(parser, f"with --direct: {RANGES_HELP}; give the live monitor's to get its health "
                                 "byte for byte")
-    add_memory_argument(parser, f"with --direct: {MEMORY_HELP}; give the live monitor's to get its health byte "
-                                "for byte")
+    add_memory_argument(parser, f"with --direct: {MEMORY_HELP} (default: none, a growing window, with which the "
+                                "golden recordings were graded live; give the live monitor's, --memory "
+                                f"{LIVE_MEMORY_S:g} by default, to get its health byte for byte)")
     add_bus_arguments(parser)
 
 
