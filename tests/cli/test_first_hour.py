@@ -135,3 +135,60 @@ def test_evaluate_explains_confidence_and_unknown_standard_errors_in_words(tmp_p
            "parameters placed" in out
     assert not re.search(r"\binf\b", out) and "std error -: not identifiable from this record" in out
     assert "K_sv omega^2 is reported, not graded" not in out  # said once, in docs/method.md
+
+
+# -- whole recordings -----------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def fleet_mcap(tmp_path_factory):
+    """The default fleet (the five Table 4 rigs), 10 s, realistic noise, as one recording."""
+    path = tmp_path_factory.mktemp("fleet") / "fleet.mcap"
+    assert main(["sim", "--to-mcap", str(path), "--duration", "10", "--noise", "realistic", "--seed", "1"]) == 0
+    return path
+
+
+def test_evaluate_grades_every_rig_of_a_recording(fleet_mcap, capsys):
+    from plant_sim.degradation import TABLE4_PAPER_GRADES
+
+    code = main(["evaluate", str(fleet_mcap), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert sorted(doc) == [f"table4-g{g}" for g in range(1, 6)]
+    assert code == (0 if all(d["status"] == "ok" for d in doc.values()) else 1)
+    right = sum(doc[f"table4-g{g}"]["grade"] == TABLE4_PAPER_GRADES[g] for g in range(1, 6))
+    assert right >= 4, {rig: d["grade"] for rig, d in doc.items()}
+    assert all(isinstance(d["why"], list) for d in doc.values())
+    main(["evaluate", str(fleet_mcap)])
+    out = capsys.readouterr().out
+    table = [line for line in out.splitlines() if line.strip().startswith(("┃", "│"))]
+    assert "rig" in table[0] and "grade" in table[0] and "why" in table[0]
+    rows = [line for line in table if "table4-g" in line]
+    assert len(rows) == 5 and "table4-g3" in rows[0]  # the fault first
+    assert "one rig in full: hydromon evaluate" in " ".join(out.split())
+    assert main(["evaluate", str(fleet_mcap), "--rig", "table4-g2", "--json"]) in (0, 1)
+    assert json.loads(capsys.readouterr().out)["grade"] == doc["table4-g2"]["grade"]
+
+
+def test_audit_audits_every_rig_of_a_recording(tmp_path, capsys):
+    fleet = tmp_path / "two.toml"  # two rigs, one with a hidden dead band (the audit takes seconds a rig)
+    fleet.write_text('[[rigs]]\nid = "a"\nseverity = 0.1\n[[rigs]]\nid = "b"\nseverity = 0.1\n'
+                     '[rigs.effects]\nvalve_dead_band = "5um"\n')
+    rec = tmp_path / "two.mcap"
+    assert main(["sim", "--fleet", str(fleet), "--to-mcap", str(rec), "--duration", "8", "--noise", "realistic"]) == 0
+    code = main(["audit", str(rec), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert sorted(doc) == ["a", "b"] and code == 0
+    assert doc["b"]["cause"] == "valve_dead_band" and doc["a"]["cause"] != "valve_dead_band", doc
+    assert main(["audit", str(rec)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split()[:3] == ["rig", "cause", "free-run"] and out[2].startswith("b ")
+    assert "valve_dead_band" in out[2]
+
+
+def test_sim_to_csv_writes_one_file_per_rig_of_a_fleet(tmp_path, capsys):
+    assert main(["sim", "--to-csv", str(tmp_path / "run.csv"), "--duration", "1"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"run-table4-g{g}.csv" for g in range(1, 6)]
+    (tmp_path / "dir").mkdir()
+    assert main(["sim", "--to-csv", str(tmp_path / "dir"), "--duration", "1", "--effect", "valve_dead_band=5um"]) == 0
+    assert len(list((tmp_path / "dir").glob("table4-g*.csv"))) == 5
+    assert main(["sim", "--to-csv", str(tmp_path / "x.csv"), "--duration", "1", "--effect", "valve_dead_band=2.5"]) == 2
+    assert "valve_dead_band 2.5 m is outside" in capsys.readouterr().err
