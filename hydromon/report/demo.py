@@ -76,7 +76,8 @@ def summary(result: DemoResult, ids) -> str:
         rec = result.recordings[0]
         lines += ["next:",
                   f"  hydromon evaluate {rec}      # every rig graded again from the recording, worst first",
-                  f"  hydromon replay {rec} --direct > verdicts.jsonl   # the monitor's verdicts again"]
+                  f"  hydromon replay {rec} --direct > verdicts.jsonl   # the monitor's verdicts again",
+                  "  (an MCAP viewer such as Foxglove opens it too: JSON messages with their schemas)"]
     return "\n".join(lines)
 
 
