@@ -69,7 +69,8 @@ def scenarios() -> list[tuple[str, PlantParams, PlantParams]]:
     out = []
     for name, centres in CENTRES.items():
         for g in range(4):
-            out.append((f"{name} {GRADES[g]} -> {GRADES[g + 1]}", _plant(name, centres[g]), _plant(name, centres[g + 1])))
+            label = f"{name} {GRADES[g]} -> {GRADES[g + 1]}"
+            out.append((label, _plant(name, centres[g]), _plant(name, centres[g + 1])))
     for name, (before, after) in LEAKS.items():
         out.append((f"{name} health -> fault", _plant(name, before), _plant(name, after)))
     return out
@@ -195,7 +196,8 @@ def main() -> None:
         changes = np.mean([results[s][m]["changes"] for s in args.seeds])
         rms = [np.sqrt(np.mean([results[s][m]["rms"][p] ** 2 for s in args.seeds])) for p in GRADED]
         print(f"| {_name(m)} | " + " | ".join(_secs(w) for w in worst)
-              + f" | {100 * right:.1f} % | {changes:.1f}/h | {100 * placed:.0f} % | " + " | ".join(f"{r:.2g} %" for r in rms) + " |")
+              + f" | {100 * right:.1f} % | {changes:.1f}/h | {100 * placed:.0f} % | "
+              + " | ".join(f"{r:.2g} %" for r in rms) + " |")
     if args.detail:
         print("\nfollow time [s] per step, seeds " + ", ".join(map(str, args.seeds)) + ":\n")
         print("| step | " + " | ".join(_name(m) for m in memories) + " |")

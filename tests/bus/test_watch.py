@@ -187,3 +187,26 @@ def test_rich_board_fits_the_terminal_by_dropping_the_least_needed_columns():
         header = next(line for line in text.splitlines() if "grade" in line and "rig" in line)
         for name in BOARD_HEAD:
             assert (name in header) == (name not in gone), (width, name, header)
+
+
+def test_a_verdicts_age_is_since_it_was_published_and_unknown_from_a_query_answer():
+    """watch --once: a monitor's answer to the query is its last verdict, of unknown age ('-');
+    a verdict published while watch listens is as old as its arrival, and the same verdict re-sent
+    (a silent rig's, marked stale) keeps that age, as the live view shows it."""
+    from hydromon.cli.commands.watch import Ages
+    from hydromon.report.board import AGE_UNKNOWN
+
+    b = Board()
+    ages = Ages(b)
+    ages.update("hydro/rig/a/health", _health(1, seq=10), 0.0, published=False)
+    ages.update("hydro/rig/s/health", _health(1, status="stale", seq=50), 0.0, published=False)
+    ages.update("hydro/rig/a/health", _health(1, seq=20), 1.0)  # published while listening
+    ages.update("hydro/rig/s/health", _health(1, status="stale", seq=50), 1.0)  # the stale re-send
+    ages.update("hydro/rig/s/health", _health(1, status="stale", seq=50), 3.0)  # and again, 2 s later
+    rows, _ = board_rows(b, 3.5, since=ages.since)
+    age = {r[0]: r[BOARD_HEAD.index("age [s]")] for r in rows}
+    assert age == {"a": "2.5", "s": "2.5"}
+    ages.update("hydro/rig/n/health", _health(2, seq=5), 3.5, published=False)  # answered, never published
+    text = render_board_plain(b, 4.0, since=ages.since)
+    assert {r[0]: r[BOARD_HEAD.index("age [s]")] for r in board_rows(b, 4.0, since=ages.since)[0]}["n"] == "-"
+    assert AGE_UNKNOWN in text

@@ -6,11 +6,13 @@ import sys
 import threading
 
 from hydromon.cli.stop import stop_on_signals
+from hydromon.engine.words import CONFIDENCE_HELP
 
 NAME = "demo"
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
 HELP = ("everything in one process on an embedded zenoh session: simulated rigs, monitor, recorder and the "
         "web dashboard; shows the live grades and the dashboard's URL, and writes an MCAP recording")
+DESCRIPTION = f"{HELP}. Columns: {CONFIDENCE_HELP}."
 EXAMPLES = (
     'hydromon demo --duration 10',
     'hydromon demo --fleet plant.toml --out recordings/',

@@ -8,11 +8,15 @@ import time
 
 from hydromon.cli.busopts import add_bus_arguments, session_from_args
 from hydromon.cli.stop import stop_on_signals
+from hydromon.engine.words import CONFIDENCE_HELP
 
 NAME = "watch"
 HELP = ("show the latest health of every rig on the bus, the rigs that need attention first and the "
         "parameters that set their grade (asks the running monitors, then follows <namespace>/rig/*/health), "
         "and the latest grade and status changes (<namespace>/rig/*/event)")
+DESCRIPTION = (f"{HELP}. Columns: {CONFIDENCE_HELP}. "
+               "Age: seconds since the verdict was published (- when only the monitor's answer was seen, of "
+               "unknown age).")
 EXAMPLES = (
     'hydromon watch --once --mode client --connect tcp/127.0.0.1:7447',
     "hydromon watch --rigs 'line1-*' --top 20",
@@ -142,7 +146,8 @@ def _listen(sub, ages, stop, clock, until) -> None:
         while (m := sub.try_recv()) is not None:
             ages.update(str(m.key_expr), m.payload.to_bytes(), clock())
         board = ages.board
-        waiting = [r for r in board.latest if board.status(r) not in ("stale", NO_MONITOR) and ages.since.get(r) is None]
+        silent = ("stale", NO_MONITOR)
+        waiting = [r for r in board.latest if board.status(r) not in silent and ages.since.get(r) is None]
         if not waiting or clock() >= until:
             return
         stop.wait(0.05)
