@@ -13,6 +13,10 @@ NAME = "dashboard"
 HELP = ("a web page of every rig, worst first, why and since when; each rig's parameters over time "
         "against its health bands; the grade and status changes, to acknowledge (asks the running "
         "monitors, then follows <namespace>/rig/*/health and /event; read-only; or --recording FILE)")
+EXAMPLES = (
+    'hydromon dashboard --mode client --connect tcp/127.0.0.1:7447',
+    'hydromon dashboard --recording tour.mcap --port 8051',
+)
 DEFAULT_PORT = 8050
 
 

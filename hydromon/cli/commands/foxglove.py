@@ -13,6 +13,9 @@ NAME = "foxglove"
 HELP = ("serve the bus to the Foxglove app (Foxglove WebSocket protocol): every rig's health (with its health "
         "bands), events and config as JSON-Schema channels, samples of the rigs a client subscribes to, and "
         "<namespace>/fleet; open it with the layout the package ships (docs/dashboard.md); read-only")
+EXAMPLES = (
+    'hydromon foxglove --mode client --connect tcp/127.0.0.1:7447',
+)
 DEFAULT_PORT = 8765
 
 
