@@ -7,7 +7,8 @@ changed: durations are capped (``SHORT``; the servers, dashboard and foxglove, s
 free port), the tour's router listens on a free loopback port (its clients connect there
 instead of 7447), ``sleep`` waits until ``watch --once`` is answered for every rig, and
 ``kill %N`` stops the background job N with SIGTERM. A later command on the bus (``$C``) that
-says "with step 2's processes running" gets them started again as step 2 starts them. Each
+says "with step 2's processes running" gets them started again as step 2 starts them, but for
+the recorder (whose recording step 3 read and it would not overwrite). Each
 command must exit 0 (the documented status of a trusted verdict), ``cmp`` must find the files
 identical.
 """
@@ -59,7 +60,7 @@ class Shell:
         self.jobs: list[subprocess.Popen] = []
         self.endpoint: str | None = None
         self.background: list[str] = []  # the lines that started the jobs, to start them again
-        self.stopped = False
+        self.phase = "step 2"  # then "stopped" (kill), then "again" (started again for a later step)
         self.env = {**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "200"}
 
     def run_line(self, line: str) -> None:
@@ -73,12 +74,14 @@ class Shell:
                 continue
             background = words[-1] == "&"
             words = words[:-1] if background else words
-            if background and not self.stopped:
+            if background and self.phase == "step 2":
                 self.background.append(line)
-            if "$C" in words and self.stopped and not background:  # "with step 2's processes running"
-                self.stopped, self.jobs, self.endpoint = False, [], None
+            # "with step 2's processes running"
+            if "$C" in words and self.phase == "stopped" and not background:
+                self.phase, self.jobs, self.endpoint = "again", [], None
                 for again in self.background:
-                    self.run_line(again)
+                    if shlex.split(again)[1] != "record":
+                        self.run_line(again)
                 self.wait_for_board(0.0)
             chain = [list(g) for g in _split(words, "&&")]
             for i, cmd in enumerate(chain):
@@ -104,7 +107,7 @@ class Shell:
         if name == "kill":
             for job in words[1:]:
                 self.stop(self.jobs[int(job.lstrip("%")) - 1])
-            self.stopped = True
+            self.phase = "stopped" if self.phase == "step 2" else self.phase
             return True
         if name == "cmp":
             assert filecmp.cmp(self.cwd / words[1], self.cwd / words[2], shallow=False), words

@@ -68,6 +68,14 @@ class Parser(argparse.ArgumentParser):
         super().error(message)
 
     def parse_args(self, args=None, namespace=None):
+        if self._commands():  # hydromon's own options come before the command: a typo there too
+            for word in sys.argv[1:] if args is None else args:
+                if not word.startswith("-"):
+                    break
+                opt = word.split("=", 1)[0]
+                if opt.startswith("--") and opt not in self._options():
+                    near = difflib.get_close_matches(opt, self._options(), n=1, cutoff=0.7)
+                    self.error(f"unrecognized arguments: {word}" + (f"; did you mean {near[0]}?" if near else ""))
         ns, extras = self.parse_known_args(args, namespace)
         if extras:
             # the command's own parser names the command and knows its options

@@ -51,6 +51,7 @@ def test_every_command_shows_examples_that_parse(name):
     (["sim", "--efect", "load_offset=1N"], "did you mean --effect?"),
     (["evalute", "x.csv"], "did you mean evaluate?"),
     (["wach", "--once"], "did you mean watch?"),
+    (["--verison"], "did you mean --version?"),
 ])
 def test_a_mistyped_option_or_command_gets_the_closest_one(capsys, argv, hint):
     with pytest.raises(SystemExit) as exc:
