@@ -77,6 +77,7 @@ def summary(result: DemoResult, ids) -> str:
         lines += ["next:",
                   f"  hydromon evaluate {rec}      # every rig graded again from the recording, worst first",
                   f"  hydromon replay {rec} --direct > verdicts.jsonl   # the monitor's verdicts again",
+                  f"  hydromon dashboard --recording {rec}   # in a web browser: each rig's history and events",
                   "  (an MCAP viewer such as Foxglove opens it too: JSON messages with their schemas)"]
     return "\n".join(lines)
 

@@ -13,9 +13,11 @@ Beside ``recordings/<name>.mcap`` goes ``<name>.health.jsonl``: the health messa
 in the recording, in order, one ``{"key": ..., "health": {...}}`` line each
 (:func:`hydromon.store.replay.health_jsonl`, payload bytes kept). ``tests/store/test_goldens.py``
 checks on every run that a direct replay of each recording gives those messages byte for
-byte. The health is a function of the published samples only (the monitor core has no
-clock), so regenerating gives byte-identical ``.health.jsonl`` files as long as the
-numerics do not change; the ``.mcap`` files differ in their log times (wall clock).
+byte. The monitor grades with a growing window (its estimators keep everything: no
+``--memory``), which is ``replay --direct``'s default too; the live ``hydromon monitor``'s
+default is 60 s (``hydromon.cli.memory.LIVE_MEMORY_S``). The health is a function of the
+published samples only (the monitor core has no clock), so regenerating gives byte-identical
+``.health.jsonl`` files as long as the numerics do not change; the ``.mcap`` files differ in their log times (wall clock).
 
 When a change of the monitor's numerics changes the health, regenerate everything with::
 
