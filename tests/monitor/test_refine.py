@@ -90,7 +90,8 @@ def test_evaluate_adds_the_refinement_to_its_json():
     rec = Recording("rig-1", np.arange(len(r.samples)) * 0.01, r.samples, RigConfig(), "<test>")
     doc = to_json(evaluate(rec, refined=True))
     assert set(doc) == {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps",
-                        "x1_outside_chambers", "timestamp_jitter", "config_changes", "memory_s", "implausible", "refined"}
+                        "x1_outside_chambers", "timestamp_jitter", "config_changes", "memory_s", "implausible", "refined",
+                        "uncalibrated", "why"}
     assert doc["refined"]["ok"] and set(doc["refined"]["params"]) == set(REFINED)
     assert abs(doc["refined"]["params"]["B_fv"] / r.params.identified()["B_fv"] - 1) < 0.03
     assert "refined" not in to_json(evaluate(rec))
