@@ -38,12 +38,14 @@ from hydromon.contract import (
     RESTART_RUN,
     RigConfig,
     check_namespace,
+    frame_key,
     health_key,
     sample_key,
     split_rig_key,
 )
 from hydromon.engine.batch import RegularBatch
 from hydromon.engine.counters import MonitorCounters
+from hydromon.engine.frames import FrameInput
 from hydromon.engine.ranges_book import RangesBook
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, RESTART, SeqState, sequence_push
 from hydromon.engine.validate import Rejected, decode_json, parse_config, parse_sample
@@ -83,7 +85,7 @@ _SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
 
 
-class MonitorCore(RegularBatch):
+class MonitorCore(RegularBatch, FrameInput):
     """The monitor without the bus: ``process(messages) -> [(health_key, payload)]``.
 
     Parameters
@@ -149,6 +151,7 @@ class MonitorCore(RegularBatch):
         self._health_keys: list[str] = []          # per row
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
         self._known: dict[str, _Rig] = {}  # sample key -> its rig, for keys already validated
+        self._frame_rigs: dict[str, _Rig] = {}  # frame key -> its rig (hydromon.engine.frames)
         self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
         self._cur = 0  # index in the current process() call of the message being taken one by one
         self._held: dict[int, SeqState] = {}  # by row: a rig's sequence state while it holds samples back
@@ -304,6 +307,7 @@ class MonitorCore(RegularBatch):
             self._held.pop(r, None)
             self.latest.pop(rig_id, None)
             self._known.pop(sample_key(rig_id, self.namespace), None)
+            self._frame_rigs.pop(frame_key(rig_id, self.namespace), None)
             for name, value, _ in _ROW_STATE:
                 getattr(self, name)[r] = value
             if rig_id in self.configs:
@@ -461,6 +465,10 @@ class MonitorCore(RegularBatch):
                 return
             self._take(rig.row, vals, out)
             return
+        rig = self._frame_rigs.get(key)
+        if rig is not None:
+            self._on_frame(key, payload, out, rig)
+            return
         parts = split_rig_key(key, self.namespace)
         if isinstance(parts, str):
             reason, detail = parts.split(": ", 1)
@@ -472,6 +480,8 @@ class MonitorCore(RegularBatch):
         rig_id, leaf = parts
         if leaf == "sample":
             self._on_sample(rig_id, key, payload, out)
+        elif leaf == "frame":
+            self._on_frame(key, payload, out, rig_id=rig_id)
         elif leaf == "config":
             self._on_config(rig_id, key, payload, out)
         else:  # health and events: the monitors' own output (recordings hold them)
