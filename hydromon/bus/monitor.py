@@ -24,7 +24,8 @@ import zenoh
 
 from hydromon.bus.quietgc import QuietGC
 from hydromon.bus.session import JSON
-from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, health_key, liveliness_key, ranges_key, sample_key
+from hydromon.contract import (DEFAULT_NAMESPACE, check_namespace, frame_key, health_key, liveliness_key, ranges_key,
+                               sample_key)
 from hydromon.engine.core import MonitorCore
 from hydromon.engine.watches import BacklogWatch, RateLimitedLog, SilenceWatch
 from hydromon.store.ranges_dir import RangesDir
@@ -42,7 +43,7 @@ def log_rig_warning(rig_id: str, message: str) -> None:
 
 
 class RigKeys:
-    """The sample and health keys of the monitor's rigs, declared on its session
+    """The sample (and frame, for a rig that sends frames) and health keys of the monitor's rigs, declared on its session
     (``session.declare_keyexpr``), so that zenoh routes them from a cache.
 
     zenoh keeps a routing-table resource, with its routes computed once, for each declared key
@@ -66,7 +67,7 @@ class RigKeys:
     def __init__(self, session, namespace: str, max_rigs: int = 2000, max_rejects: int = 100):
         self.session, self.namespace = session, namespace
         self.max_rigs, self.max_rejects = int(max_rigs), int(max_rejects)
-        self.rigs: dict[str, tuple] = {}        # rig id -> (sample KeyExpr, health KeyExpr)
+        self.rigs: dict[str, tuple] = {}        # rig id -> (sample KeyExpr, health KeyExpr[, frame KeyExpr])
         self.health: dict[str, object] = {}     # health key -> its declared KeyExpr
         self.off = False
         self._rejected = None
@@ -82,7 +83,9 @@ class RigKeys:
         for rig_id in core.rigs:
             if rig_id not in self.rigs:
                 hkey = health_key(rig_id, self.namespace)
-                kes = self.rigs[rig_id] = (declare(sample_key(rig_id, self.namespace)), declare(hkey))
+                # the key its samples come on (a rig that sent frames: its frame key as well)
+                kes = self.rigs[rig_id] = (declare(sample_key(rig_id, self.namespace)), declare(hkey)) + \
+                    ((declare(frame_key(rig_id, self.namespace)),) if core.sends_frames(rig_id) else ())
                 self.health[hkey] = kes[1]
 
     def forget(self, rig_ids) -> None:
@@ -250,6 +253,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     rig_chunk = rig_pattern(rigs)
     sub_c = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/config", zenoh.handlers.FifoChannel(capacity))
     sub_s = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/sample", zenoh.handlers.FifoChannel(capacity))
+    sub_f = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/frame", zenoh.handlers.FifoChannel(capacity))
     queryable = session.declare_queryable(f"{namespace}/rig/*/health", answer)
     ranges_queryable = session.declare_queryable(f"{namespace}/rig/*/ranges", answer_ranges)
     if ranges_dir is not None:
@@ -279,6 +283,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         while len(batch) < max_batch and (m := sub_c.try_recv()) is not None:
             batch.append((str(m.key_expr), m.payload.to_bytes()))
         while len(batch) < max_batch and (m := sub_s.try_recv()) is not None:
+            batch.append((str(m.key_expr), m.payload.to_bytes()))
+        while len(batch) < max_batch and (m := sub_f.try_recv()) is not None:  # frames: many samples each
             batch.append((str(m.key_expr), m.payload.to_bytes()))
         if batch:
             out = core.process(batch)
@@ -338,7 +344,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         keys.close()
         if flush_log is not None:
             flush_log(final=True)
-        for obj in (sub_s, sub_c, queryable, ranges_queryable, token):
+        for obj in (sub_s, sub_f, sub_c, queryable, ranges_queryable, token):
             try:
                 obj.undeclare()
             except zenoh.ZError:

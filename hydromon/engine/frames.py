@@ -26,7 +26,7 @@ import msgspec
 import numpy as np
 import orjson
 
-from hydromon.contract import DRIVE_LIMIT, FRAME_MAX, SAMPLE_COLUMNS, SEQ_MAX
+from hydromon.contract import DRIVE_LIMIT, FRAME_MAX, SAMPLE_COLUMNS, SEQ_MAX, frame_key
 from hydromon.engine.validate import VALUE_LIMITS, Rejected, decode_json, parse_frame
 
 __all__ = ["frame_payload", "block_frames", "decode_frame", "frame_samples", "FrameInput"]
@@ -101,6 +101,10 @@ class FrameInput:
     The core keeps ``_frame_rigs`` (frame key -> its rig, for keys already validated) and calls
     :meth:`_on_frame` for every message on a rig's frame key, in arrival order.
     """
+
+    def sends_frames(self, rig_id: str) -> bool:
+        """Has the rig sent a valid frame (its frame key is known)?"""
+        return rig_id in self.rigs and frame_key(rig_id, self.namespace) in self._frame_rigs
 
     def _on_frame(self, key: str, payload: bytes, out: list, rig=None, rig_id: str | None = None) -> None:
         """One frame message of the rig ``rig`` (a known frame key), or of ``rig_id`` (a first)."""
