@@ -49,15 +49,20 @@ _FrameStruct = msgspec.defstruct(
 _DECODE = msgspec.json.Decoder(_FrameStruct).decode
 
 
+_LIMITS = VALUE_LIMITS[:, None]  # |ug|, |x1|, |x3|, |x4|, |x5| limits as a column
+
+
 def _arrays(seq: int, t, ug, x1, x3, x4, x5, u):
     """``(seq, vals, u)`` if the columns make a valid frame, else None (the model says why)."""
     n = len(t)
     if not (1 <= n <= FRAME_MAX and len(ug) == n and len(x1) == n and len(x3) == n and len(x4) == n
             and len(x5) == n and 0 <= seq and seq + n - 1 <= SEQ_MAX):
         return None
-    vals = np.array((t, ug, x1, x3, x4, x5), dtype=np.float64).T  # (n, 6): t, ug, x1, x3, x4, x5
-    if not (np.abs(vals[:, 1:]) <= VALUE_LIMITS).all() or (n > 1 and not (vals[1:, 0] > vals[:-1, 0]).all()):
+    cols = np.array((t, ug, x1, x3, x4, x5), dtype=np.float64)  # (6, n)
+    # the times compared in Python: on a list of 10, faster than two more array operations
+    if not (np.abs(cols[1:]) <= _LIMITS).all() or not all(map(float.__lt__, t, t[1:])):
         return None
+    vals = cols.T  # (n, 6): t, ug, x1, x3, x4, x5
     if u is not None:
         if len(u) != n:
             return None
@@ -128,8 +133,15 @@ class FrameInput:
         last = int(self._last[r])
         if u is None and last >= 0 and seq == last + 1 and self._gap[r] < 0 and not self._bad[r] \
                 and self._back_n[r] == 0 and not self._holding[r]:
-            # what RegularBatch takes for n regular samples: no window of theirs ends abnormally
-            self._take_regular(np.full(n, r, dtype=np.int64), list(range(seq, seq + n)), vals, [self._cur] * n)
+            # RegularBatch._take_regular for one rig's run of n samples: no window of theirs ends
+            # abnormally (the scalar updates of one row, not the fancy-indexed ones of many rigs)
+            self._seal()
+            self._chunks.append((np.full(n, r, dtype=np.int64), vals))
+            self._b_seqs.extend(range(seq, seq + n))
+            self._b_msg.extend([self._cur] * n)
+            self._last[r] = seq + n - 1
+            self._n[r] += n
+            self.counters.accepted += n
             return
         for sample in frame_samples(seq, vals, u):  # the sequence rule, sample by sample
             self._take(r, sample, out)

@@ -23,8 +23,9 @@ _SIM_SUMMARY = re.compile(r"(\d+) samples x (\d+) rig\(s\), (\d+) messages in ([
 
 def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: float = 1.0,
               eval_every: int = 10, h: float = 0.01, max_p99_ms: float = 50.0,
-              monitor_args: tuple = (), sim_args: tuple = ()) -> dict:
-    """Run ``hydromon sim --rigs N --rate 1`` and ``hydromon monitor`` as processes on loopback.
+              monitor_args: tuple = (), sim_args: tuple = (), frame: int | None = None) -> dict:
+    """Run ``hydromon sim --rigs N --rate 1`` (with ``frame``: ``--frame N``) and ``hydromon monitor``
+    as processes on loopback.
 
     Topology: this process opens a probe session listening on P; the monitor listens on A and
     connects to P; the sim connects to A and P (every pair talks directly). The probe records
@@ -32,7 +33,11 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     the first rig's samples. The sim sends sample k of every rig at the deadline t0 + k h, so
     t0 is estimated as min_k(arrival_k - k h) over the first rig (it exceeds the true t0 by the
     smallest transport delay, so latencies are under-stated by that, ~0.1 ms) and a health
-    message's latency is its arrival minus the deadline of the sample seq it reports.
+    message's latency is its arrival minus the deadline of the sample seq it reports. With frames,
+    the probe takes the first rig's frames (a frame is sent when its last sample is due) and a
+    health message's latency is counted from the deadline of the last sample of the frame that
+    holds the sample it reports (it could not be computed before that frame was sent).
+    ``monitor_us_per_sample`` is the monitor's CPU time (all its threads) per sample offered [us].
 
     Counted over the window [t0 + warm, t0 + warm + seconds] of deadlines (warm counted from
     the first health message when that comes later than the first sample): ``lost`` = samples
@@ -64,7 +69,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     # delay them and count as latency; collections run in the sleeps below instead
     with tempfile.TemporaryDirectory(prefix="hydromon-bench-") as tmp, \
             listening_session("peer") as (probe, ep_p), QuietGC() as quiet:
-        sub_s = probe.declare_subscriber(f"hydro/rig/{first_rig}/sample", on_sample)
+        leaf = "sample" if frame is None else "frame"
+        sub_s = probe.declare_subscriber(f"hydro/rig/{first_rig}/{leaf}", on_sample)
         sub_h = probe.declare_subscriber("hydro/rig/*/health", on_health)
         mon_log, sim_log = os.path.join(tmp, "monitor.log"), os.path.join(tmp, "sim.log")
         with open(mon_log, "w") as ml, open(sim_log, "w") as sl:
@@ -85,8 +91,10 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
             sim = None
             try:
                 time.sleep(1.0)  # subscribers declared and routes known
+                framing = () if frame is None else ("--frame", str(frame))
                 sim = subprocess.Popen(py + ["sim", "--rigs", str(n_rigs), "--rate", "1", "--connect", ep_a,
-                                             "--connect", ep_p, *sim_args], stderr=sl, stdout=subprocess.DEVNULL)
+                                             "--connect", ep_p, *framing, *sim_args], stderr=sl,
+                                       stdout=subprocess.DEVNULL)
                 end = clock() + 120
                 while not samples and clock() < end:
                     if sim.poll() is not None:
@@ -125,14 +133,15 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
             sub_h.undeclare()
         mon_text, sim_text = open(mon_log).read(), open(sim_log).read()
 
-    # t0 of the sim's deadlines, from the first rig's samples
-    first = [(t, orjson.loads(p)["seq"]) for t, p in samples]  # the first rig's (arrival, seq)
+    # t0 of the sim's deadlines, from the first rig's samples (frames: sent at their last one's)
+    first = [(t, _last_seq(orjson.loads(p))) for t, p in samples]  # the first rig's (arrival, seq)
     t0 = min(t - k * h for t, k in first)
+    sent = (lambda s: s) if frame is None else (lambda s: (s // frame) * frame + frame - 1)
     lo, hi = t0 + warm, t0 + warm + seconds
     lat, late = [], Counter()
     for t, p in health:
         seq = orjson.loads(p)["seq"]
-        dl = t0 + seq * h
+        dl = t0 + sent(seq) * h
         if lo <= dl < hi:
             lat.append(t - dl)
             if t - dl >= max_p99_ms * 1e-3:
@@ -154,6 +163,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     wall = cpu1[3] - cpu0[3]
     out = {
         "rigs": n_rigs,
+        "frame": frame,
         "samples_per_s": len(lat) * eval_every / seconds,
         "offered_samples_per_s": n_rigs / h,
         "lost": lost,
@@ -168,6 +178,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         "cpu_sim": (cpu1[0] - cpu0[0]) / wall,
         "cpu_monitor": (cpu1[1] - cpu0[1]) / wall,
         "cpu_probe": (cpu1[2] - cpu0[2]) / wall,
+        "monitor_us_per_sample": (cpu1[1] - cpu0[1]) / wall / (n_rigs / h) * 1e6,
         "seconds": seconds,
         "warm_s": warm,
         # when the slow health messages came: {second of the window: how many took >= max_p99_ms}
@@ -180,7 +191,14 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     return out
 
 
-def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, refine: int = 3) -> dict:
+def _last_seq(obj: dict) -> int:
+    """The seq of a sample payload, or of a frame's last sample."""
+    t = obj["t"]
+    return obj["seq"] + len(t) - 1 if type(t) is list else obj["seq"]
+
+
+def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, refine: int = 3,
+               frame: int | None = None) -> dict:
     """Step up the rig count until a step loses a sample or misses p99 < 50 ms, then bisect
     ``refine`` times between the last passing and the first failing count (to a multiple of
     10; three halvings resolve 1000 passing and 2000 failing to 125 rigs, where two would stop
@@ -194,10 +212,11 @@ def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, r
     results = []
 
     def run(n):
-        _log(f"live: {n} rigs for {seconds:g} s (load average {os.getloadavg()[0]:.2f})")
+        what = "samples" if frame is None else f"frames of {frame}"
+        _log(f"live ({what}): {n} rigs for {seconds:g} s (load average {os.getloadavg()[0]:.2f})")
         load = os.getloadavg()[0]
         try:
-            r = live_step(n, seconds)
+            r = live_step(n, seconds, frame=frame)
         except (RuntimeError, OSError, ValueError) as exc:
             r = {"rigs": n, "ok": False, "error": str(exc)}
         r["loadavg_1min"] = load
@@ -228,10 +247,11 @@ def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, r
         reason = f"no step passed (tried {', '.join(str(r['rigs']) for r in results)} rigs)"
         if broken:
             reason += f"; error: {results[-1]['error'][:300]}"
-        return {"rigs": None, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
+        return {"rigs": None, "frame": frame, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
                 "reason": reason, "steps": results}
-    out = {k: best.get(k) for k in ("rigs", "samples_per_s", "lost", "p50_ms", "p99_ms", "cpu_sim",
-                                    "cpu_monitor", "cpu_probe", "health_missing", "seconds", "loadavg_1min")}
+    out = {k: best.get(k) for k in ("rigs", "frame", "samples_per_s", "lost", "p50_ms", "p99_ms", "cpu_sim",
+                                    "cpu_monitor", "cpu_probe", "monitor_us_per_sample", "health_missing",
+                                    "seconds", "loadavg_1min")}
     out["limited_by"] = (f"{fail} rigs failed" + (" (error)" if broken else "") if fail is not None
                          else f"largest step tried ({steps[-1]} rigs)")
     out["steps"] = results
