@@ -43,7 +43,7 @@ def log_rig_warning(rig_id: str, message: str) -> None:
 
 
 class RigKeys:
-    """The sample (and frame, for a rig that sends frames) and health keys of the monitor's rigs, declared on its session
+    """The sample (and a framing rig's frame) and health keys of the monitor's rigs, declared on its session
     (``session.declare_keyexpr``), so that zenoh routes them from a cache.
 
     zenoh keeps a routing-table resource, with its routes computed once, for each declared key

@@ -7,9 +7,10 @@ worker loop drains; between batches the loop closes the open chunk once it is
 files by size or age. ``log_time`` is the receive time (``clock()``: by default the wall
 clock read once at the start, advanced by the monotonic clock, see :func:`steady_wall_clock`);
 ``publish_time`` is the payload's sample time ``t`` [s] in ns when the payload is a JSON
-object with a numeric ``t`` (a frame: its first sample's, ``t[0]``), else the receive time. Rigs publish their config once at their
-start, so at its start the recorder asks the running ones for theirs (``<ns>/rig/*/config``,
-which the sim node answers), as the monitor does, and records the replies.
+object with a numeric ``t`` (a frame: its first sample's, ``t[0]``), else the receive time.
+Rigs publish their config once at their start, so at its start the recorder asks the running
+ones for theirs (``<ns>/rig/*/config``, which the sim node answers), as the monitor does, and
+records the replies.
 
 Nothing on the bus stops the recorder: a payload that is not JSON is counted and skipped (a
 JSON one is recorded as received on its key, valid or not: a replay shows what the monitor was

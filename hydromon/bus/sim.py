@@ -1,10 +1,11 @@
 """The simulator node: a fleet of simulated rigs publishing on the bus.
 
 Each rig publishes contract ``Sample`` JSON on ``<ns>/rig/<id>/sample`` (seq from 0,
-t = seq h on the rig's clock), or with ``frame`` N a contract ``Frame`` of N consecutive samples
-on ``<ns>/rig/<id>/frame`` once every N samples (sent when its last sample is due), and its ``RigConfig`` on ``<ns>/rig/<id>/config`` once at
-the start and again whenever it changes; a queryable on ``<ns>/rig/*/config`` answers
-late joiners with the current configs (``session.get``).
+t = seq h on the rig's clock), or with ``frame`` N a contract ``Frame`` of N consecutive
+samples on ``<ns>/rig/<id>/frame`` once every N samples (sent when its last sample is due),
+and its ``RigConfig`` on ``<ns>/rig/<id>/config`` once at the start and again whenever it
+changes; a queryable on ``<ns>/rig/*/config`` answers late joiners with the current configs
+(``session.get``).
 
 Pacing is drift-free: sample k goes out at ``t0 + k h / rate`` (:func:`sample_deadline`),
 a deadline computed from k, never by adding up sleeps; a late sample is sent at once and
@@ -115,7 +116,8 @@ class SimNode:
             block = frame * -(-block // frame)
         self.session, self.ids, self.fleet = session, list(ids), fleet
         self.ns, self.rate, self.block = check_namespace(namespace), float(rate), int(block)
-        self._sample_keys = [(sample_key if frame is None else frame_key)(i, namespace) for i in self.ids]  # validates the ids
+        key_of = sample_key if frame is None else frame_key
+        self._sample_keys = [key_of(i, namespace) for i in self.ids]  # validates the ids
         self._config_keys = [config_key(i, namespace) for i in self.ids]
         self._congestion = congestion
         self._with_u = frozenset(i for i, on in enumerate(publish_u or ()) if on)

@@ -185,3 +185,11 @@ def test_bench_writes_no_history_unless_asked():
     from hydromon.cli.main import build_parser
 
     assert build_parser().parse_args(["bench"]).history is None
+
+
+def test_the_frame_codec_measurement_decodes_every_encoding_to_the_frames_values():
+    from hydromon.tools.bench.frame_codec import measure
+
+    got = measure(5, passes=1)  # raises if an encoding does not give back the frame's values
+    assert set(got) == {"json-msgspec", "json-orjson", "json-base64", "samples"}
+    assert got["json-base64"][2] < got["json-msgspec"][2] < got["samples"][2]  # bytes a sample
