@@ -40,7 +40,7 @@ live
 kernel_us_per_sample
     The compiled pipeline alone on one thread: 1e6 / core_batch's one-thread figure [us].
 monitor_us_per_sample
-    The monitor process's CPU time per sample offered in live's best step [us] (all its
+    The monitor process's CPU time per sample graded in live's best step [us] (all its
     threads: zenoh's receive thread, decoding, the kernel, health).
 replay_direct_framed
     replay_direct of the same recording written as frames of N samples.

@@ -37,7 +37,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     the probe takes the first rig's frames (a frame is sent when its last sample is due) and a
     health message's latency is counted from the deadline of the last sample of the frame that
     holds the sample it reports (it could not be computed before that frame was sent).
-    ``monitor_us_per_sample`` is the monitor's CPU time (all its threads) per sample offered [us].
+    ``monitor_us_per_sample`` is the monitor's CPU time (all its threads) in the window per sample
+    it graded there [us].
 
     Counted over the window [t0 + warm, t0 + warm + seconds] of deadlines (warm counted from
     the first health message when that comes later than the first sample): ``lost`` = samples
@@ -178,7 +179,9 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         "cpu_sim": (cpu1[0] - cpu0[0]) / wall,
         "cpu_monitor": (cpu1[1] - cpu0[1]) / wall,
         "cpu_probe": (cpu1[2] - cpu0[2]) / wall,
-        "monitor_us_per_sample": (cpu1[1] - cpu0[1]) / wall / (n_rigs / h) * 1e6,
+        # per sample graded in the window (health received x eval_every): the samples offered when
+        # the monitor keeps up, fewer when it falls behind
+        "monitor_us_per_sample": (cpu1[1] - cpu0[1]) / (len(lat) * eval_every) * 1e6 if lat else None,
         "seconds": seconds,
         "warm_s": warm,
         # when the slow health messages came: {second of the window: how many took >= max_p99_ms}
