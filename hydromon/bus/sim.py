@@ -2,7 +2,8 @@
 
 Each rig publishes contract ``Sample`` JSON on ``<ns>/rig/<id>/sample`` (seq from 0,
 t = seq h on the rig's clock), or with ``frame`` N a contract ``Frame`` of N consecutive
-samples on ``<ns>/rig/<id>/frame`` once every N samples (sent when its last sample is due),
+samples on ``<ns>/rig/<id>/frame`` once every N samples (sent when its last sample is due; each
+rig's frames end at its own phase, ``hydromon.bus.framer``),
 and its ``RigConfig`` on ``<ns>/rig/<id>/config`` once at the start and again whenever it
 changes; a queryable on ``<ns>/rig/*/config`` answers late joiners with the current configs
 (``session.get``).
@@ -30,7 +31,7 @@ import zenoh
 
 from hydromon.bus.session import JSON
 from hydromon.contract import DEFAULT_NAMESPACE, FRAME_MAX, check_namespace, config_key, frame_key, sample_key
-from hydromon.engine.frames import block_frames
+from hydromon.bus.framer import Framer
 from hydromon.engine.samples import sample_payload
 from hydromon.store.fleetfile import FleetSpec, RigSpec
 from hydromon.bus.quietgc import QuietGC
@@ -93,8 +94,8 @@ class SimNode:
     publish_u : sequence of bool, optional
         Per rig: publish its valve drive ``u`` [V] in every sample (default: none does).
     frame : int or None
-        Publish frames of this many samples (1..FRAME_MAX) instead of one message per sample;
-        ``block`` is then rounded up to a multiple of it, so that no frame spans two blocks.
+        Publish frames of this many samples (1..FRAME_MAX) instead of one message per sample,
+        each rig's ending at its own phase (``hydromon.bus.framer``).
     """
 
     def __init__(self, session: zenoh.Session, ids: Sequence[str], fleet: PlantFleet, *,
@@ -112,8 +113,6 @@ class SimNode:
         if frame is not None and not 1 <= frame <= FRAME_MAX:
             raise ValueError(f"frame {frame!r} must be 1..{FRAME_MAX} samples")
         self.frame = frame
-        if frame is not None:
-            block = frame * -(-block // frame)
         self.session, self.ids, self.fleet = session, list(ids), fleet
         self.ns, self.rate, self.block = check_namespace(namespace), float(rate), int(block)
         key_of = sample_key if frame is None else frame_key
@@ -170,6 +169,7 @@ class SimNode:
                        for k in self._config_keys]
         queryable = self.session.declare_queryable(f"{self.ns}/rig/*/config", self._answer_config_query)
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plant-step")
+        framer = None if self.frame is None else Framer(self.ids, self.frame, self._with_u)
         k_first = fleet.k
         t_start = clock()
         done = 0  # samples per rig computed so far
@@ -202,6 +202,8 @@ class SimNode:
                 for i in sorted(changed):  # read before the worker may change the fleet again
                     publish_config(i)
                 future = submit()
+                if framer is not None:
+                    framer.block(blk)
                 for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
                     if self.rate > 0:
                         wait = wait_time(clock(), t_start, seq - k_first, h, self.rate)
@@ -215,12 +217,10 @@ class SimNode:
                         late = clock() - sample_deadline(t_start, seq - k_first, h, self.rate)
                         stats.max_late = max(stats.max_late, late)
                     stats.samples += 1
-                    if self.frame is not None:  # a frame per rig once its last sample is due
-                        if (j + 1) % self.frame == 0 or j + 1 == len(blk.t):
-                            j0 = j - (j % self.frame)
-                            for pub, payload in zip(sample_pubs, block_frames(blk, j0, j + 1, self._with_u)):
-                                pub.put(payload)
-                            stats.published += len(sample_pubs)
+                    if framer is not None:  # the frames that end with this tick's samples
+                        for i, payload in framer.due(j):
+                            sample_pubs[i].put(payload)
+                            stats.published += 1
                         continue
                     # one tick's rows at a time: converting the whole block at its start held
                     # the first tick back by ~10 ms at 500 rigs
@@ -234,6 +234,10 @@ class SimNode:
                     stats.published += len(sample_pubs)
             if future is not None:
                 future.cancel()
+            elif framer is not None:  # the run is done: the samples since each rig's last frame
+                for i, payload in framer.rest():
+                    sample_pubs[i].put(payload)
+                    stats.published += 1
         finally:
             quiet.__exit__()
             pool.shutdown(wait=True)

@@ -183,13 +183,15 @@ class FrameInput:
             self._take(r, sample, out)
 
 
-def block_frames(blk, j0: int, j1: int, with_u=frozenset()) -> list[bytes]:
+def block_frames(blk, j0: int, j1: int, with_u=frozenset(), rigs=None) -> list[bytes]:
     """Frame payloads of the samples ``j0 .. j1 - 1`` of a ``plant_sim.live.Block`` (every rig's
     samples ``(n_rigs, k, 5)``, its ``seq``, ``t`` [s] and valve drive ``u``), one per rig in rig
-    order; rigs whose index is in ``with_u`` carry the drive [V]."""
+    order (``rigs``: of these rig indices only); rigs whose index is in ``with_u`` carry the drive [V]."""
     seq, t = int(blk.seq[j0]), blk.t[j0:j1].tolist()
-    columns = blk.samples[:, j0:j1, :].transpose(0, 2, 1).tolist()  # (n_rigs, 5, n)
+    picked = blk.samples[:, j0:j1, :] if rigs is None else blk.samples[rigs, j0:j1, :]
+    columns = picked.transpose(0, 2, 1).tolist()  # (rigs, 5, n)
     if not with_u:
         return [frame_payload(seq, t, c) for c in columns]
-    us = blk.u[:, j0:j1].tolist()
-    return [frame_payload(seq, t, c, us[r] if r in with_u else None) for r, c in enumerate(columns)]
+    index = range(len(columns)) if rigs is None else list(rigs)
+    us = blk.u[index, j0:j1].tolist() if rigs is not None else blk.u[:, j0:j1].tolist()
+    return [frame_payload(seq, t, c, us[k] if r in with_u else None) for k, (r, c) in enumerate(zip(index, columns))]

@@ -50,7 +50,8 @@ def test_sim_frames_on_loopback_give_the_health_of_samples_byte_for_byte(tmp_pat
             probe.undeclare()
             wait_for(lambda: out.exists(), 20, "the recorder's file")
             stats = run_sim(sim_s, SPEC, rate=0, duration=SECONDS, frame=10)
-            assert stats.samples == N and stats.published == 5 * N // 10
+            # frames end at each rig's phase: a short first and last one where it is not 0
+            assert stats.samples == N and 5 * N // 10 <= stats.published <= 5 * (N // 10 + 1)
             got: dict[str, list[bytes]] = {}
 
             def drain():
@@ -60,7 +61,7 @@ def test_sim_frames_on_loopback_give_the_health_of_samples_byte_for_byte(tmp_pat
                                              for r, h in got.items())
 
             wait_for(drain, 60, "the last health message of every rig")
-            wait_for(lambda: len(frames) == 5 * N // 10, 20, "the recorder's last frame")
+            wait_for(lambda: len(frames) == stats.published, 20, "the recorder's last frame")
         finally:
             stop.set()
             mon.join(30)

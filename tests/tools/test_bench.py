@@ -193,3 +193,17 @@ def test_the_frame_codec_measurement_decodes_every_encoding_to_the_frames_values
     got = measure(5, passes=1)  # raises if an encoding does not give back the frame's values
     assert set(got) == {"json-msgspec", "json-orjson", "json-base64", "samples"}
     assert got["json-base64"][2] < got["json-msgspec"][2] < got["samples"][2]  # bytes a sample
+
+
+def test_the_frame_core_measurement_takes_every_sample_both_ways(capsys):
+    from hydromon.engine.core import MonitorCore
+    from hydromon.store.fleetfile import spread_fleet
+    from hydromon.tools.bench.frame_core import main, messages
+
+    spec = spread_fleet(4, noise="realistic")
+    for frame in (7, None):
+        core = MonitorCore()
+        core.process(messages(spec, 0.5, frame))
+        assert core.counters.accepted == 4 * 50 and core.counters.rejected_total == 0
+    assert main(["20", "10", "1"]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 2

@@ -46,11 +46,12 @@ def add_arguments(parser) -> None:
     r.add_argument("--duration", type=float, default=None, metavar="S",
                    help="rig time to simulate [s] (default: until Ctrl-C; required with --to-*)")
     r.add_argument("--block", type=int, default=None, metavar="K",
-                   help="samples per rig per step, >= 1 (default 10; with --frame rounded up to a multiple of N)")
+                   help="samples per rig per step, >= 1 (default 10)")
     r.add_argument("--frame", type=int, default=None, metavar="N",
                    help="publish frames of N consecutive samples per rig on <namespace>/rig/<id>/frame, one "
                    "message every N samples (1..1000; 10 at 100 Hz is one per 100 ms), instead of one message "
-                   "per sample; --to-mcap writes frames too")
+                   "per sample; each rig's frames end at its own phase, so a fleet's frames come spread over "
+                   "the N samples; --to-mcap writes frames too (all rigs' on the same samples)")
     r.add_argument("--to-csv", metavar="FILE", help="write one rig's run as CSV t,ug,x1,x3,x4,x5 (SI), no bus "
                    "(written to a temporary file beside FILE, renamed into place when complete)")
     r.add_argument("--to-mcap", metavar="FILE", help="write the fleet's run as an MCAP recording, no bus "
