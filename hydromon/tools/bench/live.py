@@ -36,7 +36,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     message's latency is its arrival minus the deadline of the sample seq it reports. With frames,
     the probe takes the first rig's frames (a frame is sent when its last sample is due) and a
     health message's latency is counted from the deadline of the last sample of the frame that
-    holds the sample it reports (it could not be computed before that frame was sent).
+    holds the sample it reports (it could not be computed before that frame was sent; a rig's
+    frames end at its phase, ``hydromon.bus.framer``).
     ``monitor_us_per_sample`` is the monitor's CPU time (all its threads) in the window per sample
     it graded there [us].
 
@@ -61,7 +62,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         samples.append((clock(), s.payload.to_bytes()))
 
     def on_health(s):
-        health.append((clock(), s.payload.to_bytes()))
+        health.append((clock(), s.payload.to_bytes(), str(s.key_expr)))
 
     py = [sys.executable, "-m", "hydromon.cli"]
     from hydromon.bus.quietgc import QuietGC
@@ -137,12 +138,23 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     # t0 of the sim's deadlines, from the first rig's samples (frames: sent at their last one's)
     first = [(t, _last_seq(orjson.loads(p))) for t, p in samples]  # the first rig's (arrival, seq)
     t0 = min(t - k * h for t, k in first)
-    sent = (lambda s: s) if frame is None else (lambda s: (s // frame) * frame + frame - 1)
+    # the sample that ended the frame holding seq: each rig's frames end at its phase (hydromon.bus.framer)
+    from monitor.pipeline import eval_phase
+
+    phase = {}
+
+    def sent(key: str, seq: int) -> int:
+        if frame is None:
+            return seq
+        rig = key.split("/")[-2]
+        if rig not in phase:
+            phase[rig] = eval_phase(rig, frame)
+        return seq + (-(seq + 1 + phase[rig])) % frame
     lo, hi = t0 + warm, t0 + warm + seconds
     lat, late = [], Counter()
-    for t, p in health:
+    for t, p, key in health:
         seq = orjson.loads(p)["seq"]
-        dl = t0 + sent(seq) * h
+        dl = t0 + sent(key, seq) * h
         if lo <= dl < hi:
             lat.append(t - dl)
             if t - dl >= max_p99_ms * 1e-3:
@@ -150,7 +162,6 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     k_lo, k_hi = math.ceil(warm / h - 1e-9), math.ceil((warm + seconds) / h - 1e-9)
     # the monitor staggers the rigs' evaluations (monitor.pipeline.eval_phase): count per phase
     from hydromon.store.fleetfile import spread_fleet
-    from monitor.pipeline import eval_phase
 
     phases = Counter(eval_phase(rid, eval_every) for rid in spread_fleet(n_rigs).ids)
     expected = sum(n * sum(1 for k in range(k_lo, k_hi) if (k + 1 + ph) % eval_every == 0)
