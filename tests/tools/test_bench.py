@@ -157,6 +157,8 @@ def test_bench_rejects_bad_flags():
 
     assert main(["bench", "--live-seconds", "0", "--history", ""]) == 2
     assert main(["bench", "--live-rigs", "10,x", "--history", ""]) == 2
+    assert main(["bench", "--frame", "1001", "--history", ""]) == 2
+    assert main(["bench", "--frame", "-1", "--history", ""]) == 2
 
 
 @pytest.mark.network
