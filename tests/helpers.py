@@ -137,9 +137,10 @@ def flip_in_chunk(data: bytes, i: int, bit: int = 2) -> bytes:
     return bytes(bad)
 
 
-def fleet_messages(spec, seconds: float, ns: str = "hydro") -> list[tuple[str, bytes]]:
+def fleet_messages(spec, seconds: float, ns: str = "hydro", frame: int | None = None) -> list[tuple[str, bytes]]:
     """What the sim node would publish for ``spec`` (a FleetSpec) over ``seconds`` [s]: configs,
-    then samples interleaved rig by rig."""
+    then samples interleaved rig by rig (with ``frame``: frames of that many samples)."""
+    from hydromon.engine.frames import block_frames
     from hydromon.engine.samples import sample_payload
     from hydromon.store.simfiles import iter_blocks
 
@@ -147,6 +148,11 @@ def fleet_messages(spec, seconds: float, ns: str = "hydro") -> list[tuple[str, b
     msgs = [(f"{ns}/rig/{i}/config", orjson.dumps(c.model_dump(mode="json")))
             for i, c in zip(spec.ids, fleet.configs)]
     for blk in iter_blocks(fleet, int(round(seconds / fleet.h)), block=200):
+        if frame is not None:
+            for j0 in range(0, len(blk.t), frame):
+                payloads = block_frames(blk, j0, min(j0 + frame, len(blk.t)))
+                msgs += [(f"{ns}/rig/{rig}/frame", p) for rig, p in zip(spec.ids, payloads)]
+            continue
         rows = blk.samples.tolist()
         for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
             for r, rig in enumerate(spec.ids):

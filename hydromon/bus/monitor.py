@@ -214,6 +214,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     rig_chunk = rig_pattern(rigs)
     sub_c = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/config", zenoh.handlers.FifoChannel(capacity))
     sub_s = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/sample", zenoh.handlers.FifoChannel(capacity))
+    sub_f = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/frame", zenoh.handlers.FifoChannel(capacity))
     queryable = session.declare_queryable(f"{namespace}/rig/*/health", answer)
     ranges_queryable = session.declare_queryable(f"{namespace}/rig/*/ranges", answer_ranges)
     if ranges_dir is not None:
@@ -247,6 +248,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         while len(batch) < max_batch and (m := sub_c.try_recv()) is not None:
             batch.append((str(m.key_expr), m.payload.to_bytes()))
         while len(batch) < max_batch and (m := sub_s.try_recv()) is not None:
+            batch.append((str(m.key_expr), m.payload.to_bytes()))
+        while len(batch) < max_batch and (m := sub_f.try_recv()) is not None:  # frames: many samples each
             batch.append((str(m.key_expr), m.payload.to_bytes()))
         if batch:
             out = core.process(batch)
@@ -327,7 +330,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         keys.close()
         if flush_log is not None:
             flush_log(final=True)
-        for obj in (sub_s, sub_c, queryable, ranges_queryable, token):
+        for obj in (sub_s, sub_f, sub_c, queryable, ranges_queryable, token):
             try:
                 obj.undeclare()
             except zenoh.ZError:

@@ -7,9 +7,10 @@ worker loop drains; between batches the loop closes the open chunk once it is
 files by size or age. ``log_time`` is the receive time (``clock()``: by default the wall
 clock read once at the start, advanced by the monotonic clock, see :func:`steady_wall_clock`);
 ``publish_time`` is the payload's sample time ``t`` [s] in ns when the payload is a JSON
-object with a numeric ``t``, else the receive time. Rigs publish their config once at their
-start, so at its start the recorder asks the running ones for theirs (``<ns>/rig/*/config``,
-which the sim node answers), as the monitor does, and records the replies.
+object with a numeric ``t`` (a frame: its first sample's, ``t[0]``), else the receive time.
+Rigs publish their config once at their start, so at its start the recorder asks the running
+ones for theirs (``<ns>/rig/*/config``, which the sim node answers), as the monitor does, and
+records the replies.
 
 Nothing on the bus stops the recorder: a payload that is not JSON is counted and skipped (a
 JSON one is recorded as received on its key, valid or not: a replay shows what the monitor was
@@ -39,7 +40,7 @@ import zenoh
 from hydromon.bus.rotation import DISK_FULL as _DISK_FULL
 from hydromon.bus.rotation import Rotation, names_a_directory, space_needed
 from hydromon.bus.session import loads
-from hydromon.contract import DEFAULT_NAMESPACE, check_namespace
+from hydromon.contract import DEFAULT_NAMESPACE, SAMPLE_LEAVES, check_namespace
 
 __all__ = ["record", "RecordResult", "publish_time_ns", "Rotation", "names_a_directory", "steady_wall_clock",
            "MAX_PAYLOAD_BYTES", "space_needed"]
@@ -49,7 +50,8 @@ _BATCH = 1000  # messages drained between timer checks
 _WARN_KEYS = 20  # keys whose non-JSON payloads are logged (one line each); the rest are counted
 _WARN_OTHER = 20  # oversized payloads, and messages whose handling failed, logged; the rest are counted
 MAX_PAYLOAD_BYTES = 1_000_000
-"""Payloads larger than this [B] are counted and skipped (a contract payload is under 2 kB)."""
+"""Payloads larger than this [B] are counted and skipped (a contract payload is under 2 kB, a frame
+of FRAME_MAX samples with the drive about 130 kB)."""
 
 
 def steady_wall_clock(wall_ns: Callable[[], int] = time.time_ns,
@@ -81,12 +83,12 @@ class _ConfigQuery:
         self.until = self.last = -math.inf
 
     def saw(self, key: str) -> None:
-        """Note a message's key: a config configures its rig; a sample of a rig not configured
-        (and not asked about yet) makes a query due."""
+        """Note a message's key: a config configures its rig; a sample or frame of a rig not
+        configured (and not asked about yet) makes a query due."""
         head, _, leaf = key.rpartition("/")
         if leaf == "config":
             self.configured.add(head.rpartition("/")[2])
-        elif leaf == "sample":
+        elif leaf in SAMPLE_LEAVES:
             rig = head.rpartition("/")[2]
             if rig not in self.configured and rig not in self.asked:
                 self.asked.add(rig)
@@ -129,10 +131,13 @@ _T_MAX_S = (2**64 - 1) / 1e9  # the last second an MCAP time stamp (uint64 ns) h
 
 
 def publish_time_ns(obj, receive_time_ns: int) -> int:
-    """``t`` [s] of a decoded payload as integer ns, or ``receive_time_ns`` if it has none or it
-    is not a time an MCAP record can hold: not a number (a string such as ``"nan"``, a bool),
-    not finite, negative, or past 2**64 ns (``1e300``, a huge integer)."""
+    """``t`` [s] of a decoded payload (a frame's: its first, ``t[0]``) as integer ns, or
+    ``receive_time_ns`` if it has none or it is not a time an MCAP record can hold: not a number
+    (a string such as ``"nan"``, a bool), not finite, negative, or past 2**64 ns (``1e300``, a
+    huge integer)."""
     t = obj.get("t") if isinstance(obj, dict) else None
+    if type(t) is list and t:
+        t = t[0]
     if isinstance(t, bool) or not isinstance(t, (int, float)):
         return receive_time_ns
     if isinstance(t, float) and not math.isfinite(t):

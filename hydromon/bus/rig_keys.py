@@ -6,7 +6,7 @@ import logging
 
 import zenoh
 
-from hydromon.contract import health_key, sample_key
+from hydromon.contract import frame_key, health_key, sample_key
 from hydromon.engine.core import MonitorCore
 
 __all__ = ["RigKeys"]
@@ -15,7 +15,7 @@ log = logging.getLogger("hydromon.bus.monitor")  # the node's log: these lines a
 
 
 class RigKeys:
-    """The sample and health keys of the monitor's rigs, declared on its session
+    """The sample (and a framing rig's frame) and health keys of the monitor's rigs, declared on its session
     (``session.declare_keyexpr``), so that zenoh routes them from a cache.
 
     zenoh keeps a routing-table resource, with its routes computed once, for each declared key
@@ -39,7 +39,7 @@ class RigKeys:
     def __init__(self, session, namespace: str, max_rigs: int = 2000, max_rejects: int = 100):
         self.session, self.namespace = session, namespace
         self.max_rigs, self.max_rejects = int(max_rigs), int(max_rejects)
-        self.rigs: dict[str, tuple] = {}        # rig id -> (sample KeyExpr, health KeyExpr)
+        self.rigs: dict[str, tuple] = {}        # rig id -> (sample KeyExpr, health KeyExpr[, frame KeyExpr])
         self.health: dict[str, object] = {}     # health key -> its declared KeyExpr
         self.off = False
         self._rejected = None
@@ -55,7 +55,9 @@ class RigKeys:
         for rig_id in core.rigs:
             if rig_id not in self.rigs:
                 hkey = health_key(rig_id, self.namespace)
-                kes = self.rigs[rig_id] = (declare(sample_key(rig_id, self.namespace)), declare(hkey))
+                # the key its samples come on (a rig that sent frames: its frame key as well)
+                kes = self.rigs[rig_id] = (declare(sample_key(rig_id, self.namespace)), declare(hkey)) + \
+                    ((declare(frame_key(rig_id, self.namespace)),) if core.sends_frames(rig_id) else ())
                 self.health[hkey] = kes[1]
 
     def forget(self, rig_ids) -> None:

@@ -1,9 +1,12 @@
 """The simulator node: a fleet of simulated rigs publishing on the bus.
 
 Each rig publishes contract ``Sample`` JSON on ``<ns>/rig/<id>/sample`` (seq from 0,
-t = seq h on the rig's clock) and its ``RigConfig`` on ``<ns>/rig/<id>/config`` once at
-the start and again whenever it changes; a queryable on ``<ns>/rig/*/config`` answers
-late joiners with the current configs (``session.get``).
+t = seq h on the rig's clock), or with ``frame`` N a contract ``Frame`` of N consecutive
+samples on ``<ns>/rig/<id>/frame`` once every N samples (sent when its last sample is due; each
+rig's frames end at its own phase, ``hydromon.bus.framer``),
+and its ``RigConfig`` on ``<ns>/rig/<id>/config`` once at the start and again whenever it
+changes; a queryable on ``<ns>/rig/*/config`` answers late joiners with the current configs
+(``session.get``).
 
 Pacing is drift-free: sample k goes out at ``t0 + k h / rate`` (:func:`sample_deadline`),
 a deadline computed from k, never by adding up sleeps; a late sample is sent at once and
@@ -27,7 +30,8 @@ import orjson
 import zenoh
 
 from hydromon.bus.session import JSON
-from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, config_key, sample_key
+from hydromon.contract import DEFAULT_NAMESPACE, FRAME_MAX, check_namespace, config_key, frame_key, sample_key
+from hydromon.bus.framer import Framer
 from hydromon.engine.samples import sample_payload
 from hydromon.store.fleetfile import FleetSpec, RigSpec
 from hydromon.bus.quietgc import QuietGC
@@ -89,12 +93,15 @@ class SimNode:
         simulation (the lateness shows in the stats) instead of losing samples.
     publish_u : sequence of bool, optional
         Per rig: publish its valve drive ``u`` [V] in every sample (default: none does).
+    frame : int or None
+        Publish frames of this many samples (1..FRAME_MAX) instead of one message per sample,
+        each rig's ending at its own phase (``hydromon.bus.framer``).
     """
 
     def __init__(self, session: zenoh.Session, ids: Sequence[str], fleet: PlantFleet, *,
                  namespace: str = DEFAULT_NAMESPACE, rate: float = 1.0, block: int = DEFAULT_BLOCK,
                  congestion: zenoh.CongestionControl = zenoh.CongestionControl.BLOCK,
-                 publish_u: Sequence[bool] | None = None):
+                 publish_u: Sequence[bool] | None = None, frame: int | None = None):
         if len(ids) != fleet.n_rigs:
             raise ValueError(f"{len(ids)} ids for {fleet.n_rigs} rigs")
         if len(set(ids)) != len(ids):
@@ -103,9 +110,13 @@ class SimNode:
             raise ValueError(f"rate {rate!r} must be >= 0")
         if block < 1:
             raise ValueError(f"block {block!r} must be >= 1")
+        if frame is not None and not 1 <= frame <= FRAME_MAX:
+            raise ValueError(f"frame {frame!r} must be 1..{FRAME_MAX} samples")
+        self.frame = frame
         self.session, self.ids, self.fleet = session, list(ids), fleet
         self.ns, self.rate, self.block = check_namespace(namespace), float(rate), int(block)
-        self._sample_keys = [sample_key(i, namespace) for i in self.ids]  # validates the ids
+        key_of = sample_key if frame is None else frame_key
+        self._sample_keys = [key_of(i, namespace) for i in self.ids]  # validates the ids
         self._config_keys = [config_key(i, namespace) for i in self.ids]
         self._congestion = congestion
         self._with_u = frozenset(i for i, on in enumerate(publish_u or ()) if on)
@@ -158,6 +169,7 @@ class SimNode:
                        for k in self._config_keys]
         queryable = self.session.declare_queryable(f"{self.ns}/rig/*/config", self._answer_config_query)
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="plant-step")
+        framer = None if self.frame is None else Framer(self.ids, self.frame, self._with_u)
         k_first = fleet.k
         t_start = clock()
         done = 0  # samples per rig computed so far
@@ -190,6 +202,8 @@ class SimNode:
                 for i in sorted(changed):  # read before the worker may change the fleet again
                     publish_config(i)
                 future = submit()
+                if framer is not None:
+                    framer.block(blk)
                 for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):
                     if self.rate > 0:
                         wait = wait_time(clock(), t_start, seq - k_first, h, self.rate)
@@ -202,6 +216,12 @@ class SimNode:
                         quiet.idle()
                         late = clock() - sample_deadline(t_start, seq - k_first, h, self.rate)
                         stats.max_late = max(stats.max_late, late)
+                    stats.samples += 1
+                    if framer is not None:  # the frames that end with this tick's samples
+                        for i, payload in framer.due(j):
+                            sample_pubs[i].put(payload)
+                            stats.published += 1
+                        continue
                     # one tick's rows at a time: converting the whole block at its start held
                     # the first tick back by ~10 ms at 500 rigs
                     if self._with_u:
@@ -211,10 +231,13 @@ class SimNode:
                     else:
                         for pub, row in zip(sample_pubs, blk.samples[:, j].tolist()):
                             pub.put(sample_payload(seq, t, row))
-                    stats.samples += 1
                     stats.published += len(sample_pubs)
             if future is not None:
                 future.cancel()
+            elif framer is not None:  # the run is done: the samples since each rig's last frame
+                for i, payload in framer.rest():
+                    sample_pubs[i].put(payload)
+                    stats.published += 1
         finally:
             quiet.__exit__()
             pool.shutdown(wait=True)
@@ -227,7 +250,7 @@ class SimNode:
 
 def run_sim(session: zenoh.Session, rigs: FleetSpec | Sequence[RigSpec], *, namespace: str = DEFAULT_NAMESPACE,
             rate: float = 1.0, duration: float | None = None, stop_event: threading.Event | None = None,
-            block: int = DEFAULT_BLOCK) -> SimStats:
+            block: int = DEFAULT_BLOCK, frame: int | None = None) -> SimStats:
     """Simulate ``rigs`` and publish them on ``session`` (see :class:`SimNode`).
 
     Parameters
@@ -240,8 +263,10 @@ def run_sim(session: zenoh.Session, rigs: FleetSpec | Sequence[RigSpec], *, name
         Rig time to simulate [s]; None = until ``stop_event`` is set.
     block : int
         Samples per rig computed per step.
+    frame : int or None
+        Publish frames of this many samples (``<ns>/rig/<id>/frame``) instead of samples.
     """
     spec = rigs if isinstance(rigs, FleetSpec) else FleetSpec(rigs=list(rigs))
     node = SimNode(session, spec.ids, spec.build(), namespace=namespace, rate=rate, block=block,
-                   publish_u=[r.publishes_u for r in spec.rigs])
+                   publish_u=[r.publishes_u for r in spec.rigs], frame=frame)
     return node.run(duration=duration, stop_event=stop_event)

@@ -11,14 +11,17 @@ from __future__ import annotations
 import re
 
 __all__ = [
-    "DEFAULT_NAMESPACE", "LEAVES", "RIG_ID_RE", "valid_rig_id", "check_namespace", "rig_key", "sample_key",
+    "DEFAULT_NAMESPACE", "LEAVES", "SAMPLE_LEAVES", "RIG_ID_RE", "valid_rig_id", "check_namespace", "rig_key", "sample_key",
+    "frame_key",
     "health_key", "config_key", "event_key", "ranges_key", "liveliness_key", "rig_key_parts", "split_rig_key", "parse_rig_key",
 ]
 
 DEFAULT_NAMESPACE = "hydro"
-LEAVES = ("sample", "health", "config", "event", "ranges")
+LEAVES = ("sample", "frame", "health", "config", "event", "ranges")
 """The leaves of a rig's keys (``ranges`` is only queried: a monitor answers with the health ranges
 it grades the rig on)."""
+SAMPLE_LEAVES = ("sample", "frame")
+"""The leaves that carry a rig's samples: one per message, or a frame of consecutive ones."""
 RIG_ID_RE = re.compile(r"[A-Za-z0-9_-]{1,64}")
 _NS_RE = re.compile(r"[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*")
 
@@ -44,6 +47,10 @@ def rig_key(rig_id: str, leaf: str, ns: str = DEFAULT_NAMESPACE) -> str:
 
 def sample_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
     return rig_key(rig_id, "sample", ns)
+
+
+def frame_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:
+    return rig_key(rig_id, "frame", ns)
 
 
 def health_key(rig_id: str, ns: str = DEFAULT_NAMESPACE) -> str:

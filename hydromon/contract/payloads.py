@@ -7,14 +7,15 @@ carry and what docs/contract.md shows. Payloads are JSON.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from hydromon.contract.names import CHANNELS, GRADES, UNKNOWN
 from hydromon.contract.rig import RigConfig
 
-__all__ = ["Sample", "Health", "SAMPLE_COLUMNS", "SAMPLE_LIMITS", "SEQ_MAX", "RESTART_RUN", "STATUSES",
+__all__ = ["Sample", "Frame", "FRAME_MAX", "Health", "SAMPLE_COLUMNS", "SAMPLE_LIMITS", "SEQ_MAX", "RESTART_RUN", "STATUSES",
            "LEAF_MODELS", "DRIVE", "DRIVE_LIMIT", "EVENT_KINDS", "Event", "schemas"]
 
 SEQ_MAX = 2**63 - 1  # seq is a signed 64-bit count (the monitor keeps it in int64 arrays)
@@ -85,6 +86,69 @@ DRIVE = "u"
 """The optional field of a sample: the valve drive [V]."""
 
 
+FRAME_MAX = 1000
+"""Most samples in one frame (10 s at 100 Hz): bounds the work of one message."""
+
+
+def _channel(what: str, limit: float):
+    """A frame's column: 1..FRAME_MAX numbers, each within ``limit`` as in a sample."""
+    return Annotated[list[Annotated[float, Field(ge=-limit, le=limit)]],
+                     Field(min_length=1, max_length=FRAME_MAX, description=f"{what} of each sample")]
+
+
+class Frame(_Payload):
+    """N consecutive samples of one rig in one message, ``<ns>/rig/<id>/frame`` (1 <= N <= FRAME_MAX).
+
+    seq is the first sample's seq: the samples are seq, seq + 1, ..., seq + N - 1 (so a frame
+    has no gap inside; the last one at most 2**63 - 1). t [s] are the sample times on the rig
+    clock, strictly increasing; ug [V], x1 [m], x3, x4 [Pa], x5 [m] (and the optional valve drive
+    u [V]) one number per sample, each array of the same length N, each value finite and within
+    the limits of a :class:`Sample`'s. Sample i of the frame is the Sample ``{seq: seq + i,
+    t: t[i], ug: ug[i], ...}``: a monitor grades a rig the same whether it sends samples or frames.
+    """
+
+    seq: int = Field(ge=0, le=SEQ_MAX)
+    t: Annotated[list[float], Field(min_length=1, max_length=FRAME_MAX,
+                                    description="rig clock time [s] of each sample, strictly increasing")]
+    ug: _channel("command ug [V]", SAMPLE_LIMITS["ug"])
+    x1: _channel("piston position x1 [m]", SAMPLE_LIMITS["x1"])
+    x3: _channel("chamber pressure x3 [Pa]", SAMPLE_LIMITS["x3"])
+    x4: _channel("chamber pressure x4 [Pa]", SAMPLE_LIMITS["x4"])
+    x5: _channel("spool position x5 [m]", SAMPLE_LIMITS["x5"])
+    u: _channel("valve drive u [V]", DRIVE_LIMIT) | None = None
+
+    @field_validator("u", mode="before")
+    @classmethod
+    def _optional_numbers(cls, v):
+        return v if v is None else cls._numbers(v)
+
+    @field_validator("t", *CHANNELS, mode="before")
+    @classmethod
+    def _numbers(cls, v):
+        # each element as a sample's field (no bools, no strings, finite)
+        if not isinstance(v, list):
+            raise ValueError("must be an array of numbers")
+        for x in v:
+            Sample._number(x)
+        return v
+
+    _seq_int = field_validator("seq", mode="before")(Sample._int.__func__)
+
+    @model_validator(mode="after")
+    def _shape(self):
+        n = len(self.t)
+        for name in (*CHANNELS, "u"):
+            col = getattr(self, name)
+            if col is not None and len(col) != n:
+                raise PydanticCustomError("frame_shape", "{name} has {got} values for {n} sample times",
+                                          {"name": name, "got": len(col), "n": n})
+        if self.seq + n - 1 > SEQ_MAX:
+            raise PydanticCustomError("frame_shape", "the last sample's seq is beyond 2**63 - 1")
+        if any(b <= a for a, b in zip(self.t, self.t[1:])):
+            raise PydanticCustomError("frame_shape", "t must be strictly increasing")
+        return self
+
+
 class Health(_Payload):
     """The monitor's verdict on a rig, ``<ns>/rig/<id>/health``.
 
@@ -132,7 +196,7 @@ class Event(_Payload):
     epoch: int | None = Field(None, ge=0, le=SEQ_MAX)
 
 
-LEAF_MODELS = {"sample": Sample, "health": Health, "config": RigConfig, "event": Event}
+LEAF_MODELS = {"sample": Sample, "frame": Frame, "health": Health, "config": RigConfig, "event": Event}
 """The payload model of each leaf of a rig's keys."""
 
 

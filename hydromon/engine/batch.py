@@ -77,10 +77,16 @@ class RegularBatch:
         out_of_limits = (np.abs(vals[:, 1:]) > VALUE_LIMITS).any(axis=1)
         if out_of_limits.any():  # the per-message path rejects them (bad-value)
             slow[rows[out_of_limits]] = True
-        if pick is not None:  # a config of a known rig in the batch: that rig goes one by one
+        if pick is not None:  # a config or a frame of a known rig in the batch: that rig goes one by one
             for key, rig in zip(map(_KEY, messages), rigs):
-                parsed = parse_rig_key(key, self.namespace) if rig is None else None
-                if parsed is not None and parsed[1] == "config" and parsed[0] in self.rigs:
+                if rig is not None:
+                    continue
+                framed = self._frame_rigs.get(key)
+                if framed is not None:
+                    slow[framed.row] = True
+                    continue
+                parsed = parse_rig_key(key, self.namespace)
+                if parsed is not None and parsed[1] in ("config", "frame") and parsed[0] in self.rigs:
                     slow[self.rigs[parsed[0]].row] = True
         # seq one past the previous one of the same rig (in the batch, or the last taken)
         order = np.argsort(rows, kind="stable")

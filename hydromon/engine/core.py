@@ -35,6 +35,7 @@ import orjson
 from hydromon.contract import DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, check_namespace, split_rig_key
 from hydromon.engine.batch import RegularBatch
 from hydromon.engine.counters import MonitorCounters
+from hydromon.engine.frames import FrameInput
 from hydromon.engine.ranges_book import RangesBook
 from hydromon.engine.rig_table import ROW_STATE, Rig, RigTable
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, RESTART, SeqState, sequence_push
@@ -55,7 +56,7 @@ _SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
 
 
-class MonitorCore(RegularBatch, RigTable):
+class MonitorCore(RegularBatch, RigTable, FrameInput):
     """The monitor without the bus: ``process(messages) -> [(health_key, payload)]``.
 
     Parameters
@@ -121,6 +122,7 @@ class MonitorCore(RegularBatch, RigTable):
         self._health_keys: list[str] = []          # per row
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
         self._known: dict[str, Rig] = {}  # sample key -> its rig, for keys already validated
+        self._frame_rigs: dict[str, Rig] = {}  # frame key -> its rig (hydromon.engine.frames)
         self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
         self._cur = 0  # index in the current process() call of the message being taken one by one
         self._held: dict[int, SeqState] = {}  # by row: a rig's sequence state while it holds samples back
@@ -334,6 +336,10 @@ class MonitorCore(RegularBatch, RigTable):
                 return
             self._take(rig.row, vals, out)
             return
+        rig = self._frame_rigs.get(key)
+        if rig is not None:
+            self._on_frame(key, payload, out, rig)
+            return
         parts = split_rig_key(key, self.namespace)
         if isinstance(parts, str):
             reason, detail = parts.split(": ", 1)
@@ -345,6 +351,8 @@ class MonitorCore(RegularBatch, RigTable):
         rig_id, leaf = parts
         if leaf == "sample":
             self._on_sample(rig_id, key, payload, out)
+        elif leaf == "frame":
+            self._on_frame(key, payload, out, rig_id=rig_id)
         elif leaf == "config":
             self._on_config(rig_id, key, payload, out)
         else:  # health and events: the monitors' own output (recordings hold them)

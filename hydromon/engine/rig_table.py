@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hydromon.contract import RigConfig, health_key, sample_key
+from hydromon.contract import RigConfig, frame_key, health_key, sample_key
 from hydromon.engine.validate import Rejected, decode_json, parse_config
 
 __all__ = ["ROW_STATE", "Rig", "RigTable"]
@@ -106,6 +106,7 @@ class RigTable:
             self._taps.pop(r, None)
             self.latest.pop(rig_id, None)
             self._known.pop(sample_key(rig_id, self.namespace), None)
+            self._frame_rigs.pop(frame_key(rig_id, self.namespace), None)
             for name, value, _ in ROW_STATE:
                 getattr(self, name)[r] = value
             if rig_id in self.configs:

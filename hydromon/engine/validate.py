@@ -13,8 +13,10 @@ rejected, and counted under a reason, when
 ``wrong-type``     not a JSON object, or a field of the wrong type (a string, a bool, a
                    float seq)
 ``unknown-field``  a field the contract does not have (models forbid extras)
-``bad-value``      a value out of its range (seq < 0, a non-positive area) or a config
-                   whose sample rate the monitor does not run at
+``bad-value``      a value out of its range (seq < 0, a non-positive area), a config
+                   whose sample rate the monitor does not run at, or a frame whose arrays
+                   differ in length, are empty or longer than FRAME_MAX, or whose times do
+                   not strictly increase
 =================  ===================================================================
 """
 
@@ -28,9 +30,9 @@ import numpy as np
 import orjson
 from pydantic import ValidationError
 
-from hydromon.contract import SAMPLE_COLUMNS, SAMPLE_LIMITS, SEQ_MAX, RigConfig, Sample
+from hydromon.contract import SAMPLE_COLUMNS, SAMPLE_LIMITS, SEQ_MAX, Frame, RigConfig, Sample
 
-__all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_config", "parse_sample"]
+__all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_config", "parse_sample", "parse_frame"]
 
 REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-field", "wrong-type",
                   "unknown-field", "bad-value", "too-many-rigs")
@@ -77,7 +79,8 @@ def _classify(exc: ValidationError, obj: dict) -> tuple[str, str]:
             kinds.append(("unknown-field", loc))
         elif typ == "finite_number" or "finite" in e.get("msg", "") or _nonfinite_string(value):
             kinds.append(("non-finite", loc))
-        elif typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        elif typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal", "too_short", "too_long",
+                     "frame_shape"):
             kinds.append(("bad-value", loc))
         else:
             kinds.append(("wrong-type", loc))
@@ -133,6 +136,19 @@ def parse_sample(obj) -> tuple:
         return (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5, s.u)
     return (s.seq, s.t, s.ug, s.x1, s.x3, s.x4, s.x5)  # pragma: no cover (fast path takes these)
 
+
+def parse_frame(obj) -> Frame:
+    """A decoded frame payload validated as ``contract.Frame`` (the reasons as a sample's; a frame's
+    shape, its arrays' lengths and its times, is ``bad-value``). ``hydromon.engine.frames`` takes
+    the common valid case faster, into arrays, and leaves every other payload to this."""
+    if not isinstance(obj, dict):
+        raise Rejected("wrong-type", f"payload is a JSON {type(obj).__name__}, not an object")
+    try:
+        return Frame.model_validate(obj)
+    except ValidationError as exc:
+        raise Rejected(*_classify(exc, obj)) from None
+    except OverflowError:
+        raise Rejected("non-finite", "a number beyond the range of a double") from None
 
 
 

@@ -22,7 +22,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.stream_reader import get_chunk_data_stream
 from pydantic import ValidationError
 
-from hydromon.contract import SAMPLE_COLUMNS, RigConfig, Sample, valid_rig_id
+from hydromon.contract import SAMPLE_COLUMNS, Frame, RigConfig, Sample, valid_rig_id
 from hydromon.store.mcap_layout import (
     DECODE_ERRORS, MAGIC, U64, CorruptRecording, EmptyRecording, RecordingError, TruncatedRecording, damaged,
     empty_message, opened, recover_hint, rig_topic, time_ns,
@@ -232,7 +232,7 @@ def sample_rigs(src) -> list[str]:
 
 def read_samples(src, rig: str | None = None, rejected: list | None = None,
                  configs: list | None = None, drive: list | None = None) -> tuple[str, np.ndarray, np.ndarray]:
-    """One rig's samples: ``(rig_id, data, seq)``.
+    """One rig's samples, sent one per message or in frames: ``(rig_id, data, seq)``.
 
     ``data`` is float64 ``(N, 6)`` with columns :data:`SAMPLE_COLUMNS` (t [s], ug [V],
     x1 [m], x3 [Pa], x4 [Pa], x5 [m]), ``seq`` int64 ``(N,)``, both in log-time order.
@@ -250,6 +250,11 @@ def read_samples(src, rig: str | None = None, rejected: list | None = None,
     sample without one), so ``drive[i]`` belongs to ``data[i]``.
     """
     rigs = _rig_topics(src, "sample", rig)
+    for rig_id, topic in _rig_topics(src, "frame", rig).items():  # frames: many samples a message
+        head = topic.rsplit("/", 1)[0]
+        if rig_id in rigs and rigs[rig_id].rsplit("/", 1)[0] != head:
+            raise RecordingError(f"rig {rig_id!r} appears under two namespaces: {rigs[rig_id]!r} and {topic!r}")
+        rigs.setdefault(rig_id, topic)
     if not rigs:
         raise RecordingError("recording holds no rig samples")
     if rig is None:
@@ -258,26 +263,34 @@ def read_samples(src, rig: str | None = None, rejected: list | None = None,
         rig = next(iter(rigs))
     elif rig not in rigs:
         raise ValueError(f"rig {rig!r} not in recording; it holds {', '.join(sorted(rigs))}")
-    sample_topic = rigs[rig]
-    topics = [sample_topic]
+    head = rigs[rig].rsplit("/", 1)[0]
+    sample_topic, frame_topic = head + "/sample", head + "/frame"
+    topics = [sample_topic, frame_topic]
     if configs is not None:  # one pass, so a config falls between the samples it fell between live
-        topics.append(sample_topic.rsplit("/", 1)[0] + "/config")
+        topics.append(head + "/config")
     rows, seqs = [], []
     for key, payload, log_ns, _ in read_recording(src, topics=topics):
-        if key != sample_topic:
+        if key not in (sample_topic, frame_topic):
             try:
                 configs.append((len(rows), RigConfig.model_validate_json(payload)))
             except ValidationError:
                 pass
             continue
         try:
-            s = Sample.model_validate_json(payload)
+            s = (Sample if key == sample_topic else Frame).model_validate_json(payload)
         except ValidationError as exc:
-            why = (f"bad sample on {key} at log time {log_ns} ns: "
+            why = (f"bad {key.rsplit('/', 1)[1]} on {key} at log time {log_ns} ns: "
                    f"{exc.errors()[0].get('loc')}: {exc.errors()[0].get('msg')}")
             if rejected is None:
                 raise RecordingError(why) from None
             rejected.append(why)
+            continue
+        if key == frame_topic:  # a frame: samples seq, seq + 1, ...
+            n = len(s.t)
+            rows += zip(s.t, s.ug, s.x1, s.x3, s.x4, s.x5)
+            seqs += range(s.seq, s.seq + n)
+            if drive is not None:
+                drive += [math.nan] * n if s.u is None else s.u
             continue
         rows.append((s.t, s.ug, s.x1, s.x3, s.x4, s.x5))
         seqs.append(s.seq)

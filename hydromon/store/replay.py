@@ -12,7 +12,7 @@ measured in log time from its first message; a window that starts later is prece
 rig's last config from before it (stamped with the window's first log time), so its rigs are
 graded with their recorded constants, not the defaults. A recording made by ``hydromon demo`` or
 ``hydromon record`` holds the monitor's verdicts too; to have a live monitor grade a
-replay afresh, replay only ``<ns>/rig/*/sample`` and ``<ns>/rig/*/config`` (else the old
+replay afresh, replay only ``<ns>/rig/*/sample``, ``.../frame`` and ``.../config`` (else the old
 verdicts go out on the same keys as the new ones).
 """
 
@@ -24,7 +24,7 @@ from collections.abc import Iterable, Iterator
 
 import zenoh
 
-from hydromon.contract import DEFAULT_NAMESPACE, parse_rig_key, rig_key_parts
+from hydromon.contract import DEFAULT_NAMESPACE, SAMPLE_LEAVES, parse_rig_key, rig_key_parts
 from hydromon.store.mcap_layout import rig_topic
 from hydromon.store.mcap_read import read_recording, read_summary
 
@@ -116,9 +116,10 @@ class NothingToReplay(ValueError):
 
 
 def sample_namespaces(topics: Iterable[str]) -> list[str]:
-    """The namespaces ``<ns>`` of the rig sample topics ``<ns>/rig/<id>/sample`` among ``topics``."""
+    """The namespaces ``<ns>`` of the rig sample topics ``<ns>/rig/<id>/sample`` (and ``.../frame``)
+    among ``topics``."""
     return sorted({p[0] for t in topics if not isinstance(p := rig_key_parts(t, None), str) and p[0]
-                   and p[2] == "sample"})
+                   and p[2] in SAMPLE_LEAVES})
 
 
 def _listed(items: list[str], n: int = 5) -> str:
@@ -144,7 +145,7 @@ def window_problem(name: str, topics: list[str], span_s: float, count: int, *, k
                 f"the recording's topics: {_listed(topics)}")
     if namespace is None:
         return None
-    mine = [t for t in hit if (p := parse_rig_key(t, namespace)) and p[1] == "sample"]
+    mine = [t for t in hit if (p := parse_rig_key(t, namespace)) and p[1] in SAMPLE_LEAVES]
     if mine:
         return None
     others = sample_namespaces(hit)
@@ -154,7 +155,7 @@ def window_problem(name: str, topics: list[str], span_s: float, count: int, *, k
     if others:
         return (f"{name}: no rig samples under namespace {namespace}; the recording's are under "
                 f"{_listed(others)}: choose one with --namespace")
-    return (f"{name}: no rig samples (<ns>/rig/<id>/sample) among the replayed topics "
+    return (f"{name}: no rig samples (<ns>/rig/<id>/sample or .../frame) among the replayed topics "
             f"({_listed(hit)}): nothing to grade")
 
 

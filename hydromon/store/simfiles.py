@@ -11,7 +11,8 @@ import math
 
 import orjson
 
-from hydromon.contract import DEFAULT_NAMESPACE, DRIVE, SAMPLE_COLUMNS, config_key, sample_key
+from hydromon.contract import DEFAULT_NAMESPACE, DRIVE, SAMPLE_COLUMNS, config_key, frame_key, sample_key
+from hydromon.engine.frames import block_frames
 from hydromon.engine.samples import sample_payload
 from hydromon.store.fleetfile import FleetSpec
 from plant_sim.live import PlantFleet
@@ -93,9 +94,11 @@ def write_csv(spec: FleetSpec, duration: float, stream, rig: str | None = None, 
 
 
 def write_mcap(spec: FleetSpec, duration: float, stream, namespace: str = DEFAULT_NAMESPACE,
-               on_block=None) -> int:
+               on_block=None, frame: int | None = None) -> int:
     """Write the fleet's run of ``duration`` [s] to an MCAP stream as the recorder would have
-    recorded it from the bus (configs first, then samples; log and publish time = t).
+    recorded it from the bus (configs first, then samples; log and publish time = t). With
+    ``frame`` N, frames of N samples (``hydromon sim --frame N``; the last one of the run may be
+    shorter), logged at their last sample's t and published at their first's.
 
     ``on_block(done, total)`` (samples per rig) is called after each block. Returns the number
     of messages written.
@@ -110,6 +113,20 @@ def write_mcap(spec: FleetSpec, duration: float, stream, namespace: str = DEFAUL
         for i, key in enumerate(config_key(i, namespace) for i in spec.ids):
             writer.write(key, orjson.dumps(fleet.configs[i].model_dump(mode="json")), 0, 0)
         done = 0
+        if frame is not None:
+            fkeys = [frame_key(i, namespace) for i in spec.ids]
+            drives = frozenset(r for r, on in enumerate(with_u) if on)
+            for blk in iter_blocks(fleet, n, block=frame * max(1, 100 // frame)):
+                ts = blk.t.tolist()
+                for j0 in range(0, len(ts), frame):
+                    j1 = min(j0 + frame, len(ts))
+                    pub_ns, log_ns = int(round(ts[j0] * 1e9)), int(round(ts[j1 - 1] * 1e9))
+                    for key, payload in zip(fkeys, block_frames(blk, j0, j1, drives)):
+                        writer.write(key, payload, log_ns, pub_ns)
+                done += len(ts)
+                if on_block is not None:
+                    on_block(done, n)
+            return writer.message_count
         for blk in iter_blocks(fleet, n, block=100):
             rows, us = blk.samples.tolist(), blk.u.tolist()
             for j, (seq, t) in enumerate(zip(blk.seq.tolist(), blk.t.tolist())):

@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 from hydromon import contract
-from hydromon.contract import DEFAULT_NAMESPACE, GRADES, PARAM_NAMES, PARAM_UNITS, STATUSES, Health, RigConfig, Sample
+from hydromon.contract import (DEFAULT_NAMESPACE, GRADES, PARAM_NAMES, PARAM_UNITS, STATUSES, Frame, Health, RigConfig,
+                               Sample)
 
 __all__ = ["render", "DOC_PATH", "main"]
 
@@ -29,6 +30,7 @@ def _pattern(key_fn, shown: str) -> str:
 # (key expression, producer, payload model or description)
 _KEYS = (
     (_pattern(contract.sample_key, "<id>"), "rig / plant_sim", Sample),
+    (_pattern(contract.frame_key, "<id>"), "rig / plant_sim (`--frame N`)", Frame),
     (_pattern(contract.health_key, "<id>"), "monitor", Health),
     (_pattern(contract.config_key, "<id>"), "rig / plant_sim (once and on change)", RigConfig),
     (_pattern(contract.liveliness_key, "<node>"), "monitor", "liveliness token: the node is up"),
@@ -56,11 +58,12 @@ _RECORDINGS = """\
 `hydromon record` writes what it receives under `<ns>/**` to MCAP files:
 
 - one channel per key expression; the topic is the key, `message encoding: json`;
-- the channel's schema is the JSON Schema above for the key's leaf (`sample`, `health`,
+- the channel's schema is the JSON Schema above for the key's leaf (`sample`, `frame`, `health`,
   `config`; other keys get the permissive schema `{}`), `schema encoding: jsonschema`,
-  schema names `hydromon.Sample`, `hydromon.Health`, `hydromon.RigConfig`, `hydromon.Any`;
+  schema names `hydromon.Sample`, `hydromon.Frame`, `hydromon.Health`, `hydromon.RigConfig`, `hydromon.Any`;
 - `log_time` is when the recorder received the message, `publish_time` the payload's `t`
-  (when the payload is a JSON object with a numeric `t`), both integer nanoseconds;
+  (when the payload is a JSON object with a numeric `t`; a frame's first time `t[0]`), both
+  integer nanoseconds;
   the message `sequence` counts messages per channel within the file;
 - each rig's config is also stored as metadata named `rig_config/<id>` (each field as JSON
   text) when first seen and on change, and again at the start of every rotated file;
@@ -104,7 +107,8 @@ def render() -> str:
         "",
         f"Grades: {', '.join(f'`{g}`' for g in GRADES)} (levels 0-4), and `unknown` (level null).",
         f"Statuses: {', '.join(f'`{s}`' for s in STATUSES)}. `bad-input` (before `stale`): a message on the rig's",
-        "sample key was rejected since its previous health, or its x1 went beyond a chamber's end (the rig constants",
+        "sample or frame key was rejected since its previous health, or its x1 went beyond a chamber's end (the rig",
+        "constants"
         "or x1's zero, sign or unit are wrong; grade kept), or an estimate is physically impossible (a negative",
         "compressibility, orifice coefficient or valve gain: input in wrong units or sign; grade `unknown`).",
         "`stale`: the first health after a gap in the rig's `seq`, or the rig's latest health re-sent once when it",
@@ -125,7 +129,7 @@ def render() -> str:
         "## Payloads",
         "",
     ]
-    for model in (Sample, Health, RigConfig):
+    for model in (Sample, Frame, Health, RigConfig):
         out += [
             f"### {model.__name__}",
             "",

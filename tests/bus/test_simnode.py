@@ -421,3 +421,30 @@ def test_cli_sim_and_router_stop_by_themselves():
 
     assert main(["router", "--listen", "tcp/127.0.0.1:0", "--duration", "0.2"]) == 0
     assert main(["sim", "--listen", "tcp/127.0.0.1:0", "--rigs", "3", "--rate", "0", "--duration", "0.3"]) == 0
+
+
+def test_the_framer_cuts_every_sample_once_into_frames_ending_at_each_rigs_phase():
+    import orjson
+
+    from hydromon.bus.framer import Framer
+    from hydromon.store.fleetfile import spread_fleet
+    from monitor.pipeline import eval_phase
+
+    spec = spread_fleet(6, noise="realistic")
+    fleet = spec.build()
+    framer = Framer(spec.ids, 10, with_u=frozenset({2}))
+    got = {i: [] for i in range(6)}
+    for k in (7, 13, 10, 3):  # blocks of any sizes: frames span them
+        blk = fleet.step(k)
+        framer.block(blk)
+        for j in range(k):
+            for i, payload in framer.due(j):
+                got[i].append(orjson.loads(payload))
+    for i, payload in framer.rest():
+        got[i].append(orjson.loads(payload))
+    for i, frames in got.items():
+        seqs = [f["seq"] + k for f in frames for k in range(len(f["t"]))]
+        assert seqs == list(range(33))  # every sample once, in order
+        ends = [f["seq"] + len(f["t"]) - 1 for f in frames[:-1]]
+        assert all((e + 1 + eval_phase(spec.ids[i], 10)) % 10 == 0 for e in ends)
+        assert all(len(f["t"]) == 10 for f in frames[1:-1]) and ("u" in frames[0]) == (i == 2)

@@ -389,3 +389,28 @@ def test_a_node_that_will_meet_nobody_says_so(capsys):
                                              ("peer", [], ["tcp/127.0.0.1:1"], False),
                                              ("peer", [], [], True), ("router", [], [], False)):
         assert isolation_hint(mode, connect, listen, multicast) is None
+
+
+# -- sim --frame ----------------------------------------------------------------------------------
+
+def test_a_framed_recording_evaluates_replays_and_audits_as_its_samples(tmp_path, capsys):
+    runs = {}
+    for name, extra in (("samples", []), ("frames", ["--frame", "10"])):
+        path = tmp_path / f"{name}.mcap"
+        assert main(["sim", "--noise", "realistic", "--duration", "6", "--rig", "table4-g4", "--to-mcap",
+                     str(path), *extra]) == 0
+        assert main(["replay", "--direct", str(path), "--out", str(tmp_path / f"{name}.jsonl")]) == 0
+        capsys.readouterr()
+        assert main(["evaluate", str(path), "--json"]) == 0
+        ev = orjson.loads(capsys.readouterr().out)
+        assert main(["audit", str(path), "--json"]) == 0
+        runs[name] = (ev, orjson.loads(capsys.readouterr().out), (tmp_path / f"{name}.jsonl").read_bytes())
+    assert {k for k, *_ in read_recording(tmp_path / "frames.mcap")} == {"hydro/rig/table4-g4/config",
+                                                                         "hydro/rig/table4-g4/frame"}
+    (ev_s, au_s, h_s), (ev_f, au_f, h_f) = runs["samples"], runs["frames"]
+    assert h_f == h_s and h_s.count(b"\n") == 60
+    drop = lambda d: {k: v for k, v in d.items() if k not in ("source", "file")}  # noqa: E731
+    assert drop(ev_f) == drop(ev_s) and drop(au_f) == drop(au_s)
+    assert main(["sim", "--frame", "0", "--duration", "1", "--to-mcap", str(tmp_path / "x.mcap")]) == 2
+    assert main(["sim", "--frame", "1001", "--duration", "1", "--to-mcap", str(tmp_path / "x.mcap")]) == 2
+    assert main(["sim", "--frame", "5", "--duration", "1", "--to-csv", str(tmp_path / "x.csv")]) == 2

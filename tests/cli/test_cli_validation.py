@@ -76,7 +76,7 @@ def test_sim_to_mcap_bad_duration_keeps_the_existing_file(tmp_path, capsys, dura
 def test_sim_failure_mid_write_leaves_the_old_file(tmp_path, monkeypatch, failure, status):
     from hydromon.store import simfiles
 
-    def half_then_fail(spec, duration, stream, namespace="hydro", on_block=None):
+    def half_then_fail(spec, duration, stream, namespace="hydro", on_block=None, frame=None):
         stream.write(b"\x89MCAP0\r\n half a recording")
         raise failure
 

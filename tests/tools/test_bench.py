@@ -106,8 +106,10 @@ def test_bench_quick_json(tmp_path):
     doc = json.loads(out.stdout)  # exactly one JSON document on stdout
     for key in KEYS:
         assert key in doc
-    for key in ("core_single", "core_batch", "replay_direct", "transport_ceiling", "baseline_naive"):
+    for key in ("core_single", "core_batch", "replay_direct", "transport_ceiling", "baseline_naive",
+                "kernel_us_per_sample", "replay_direct_framed"):
         assert isinstance(doc[key], float) and doc[key] > 0, (key, doc[key])
+    assert doc["details"]["replay_direct_framed"]["frame"] == 10
     assert doc["memory_per_rig"]["state_bytes"] > 0 and doc["memory_per_rig"]["rss_bytes"] > 0
     assert doc["live"]["rigs"] is None and doc["live"]["reason"]
     lines = hist.read_text().splitlines()
@@ -132,8 +134,11 @@ def test_the_history_plot_draws_each_run_and_its_share_of_the_ceiling(tmp_path, 
     runs = [{"timestamp": "t0", "core_single": 2e5, "transport_ceiling": 2e5, "live": {"rigs": 750}},
             {"timestamp": "t1", "core_single": 1e5, "transport_ceiling": 1.5e5, "live": {"rigs": None},
              "details": {"quick": True}},
-            {"timestamp": "t2", "core_single": 3e5, "transport_ceiling": 3e5, "live": {"rigs": 1200}}]
-    ax_t, ax_l, ax_s = history_figure(runs).axes
+            {"timestamp": "t2", "core_single": 3e5, "transport_ceiling": 3e5, "live": {"rigs": 1200},
+             "kernel_us_per_sample": 1.5, "monitor_us_per_sample": 2.5}]
+    ax_t, ax_l, ax_s, ax_u = history_figure(runs).axes
+    mon = [ln for ln in ax_u.lines if ln.get_label() == "monitor_us_per_sample"][0]
+    assert mon.get_xdata().tolist() == [2] and mon.get_ydata().tolist() == [2.5]
     share = [ln for ln in ax_s.lines if ln.get_label() == "live / ceiling"][0]
     assert share.get_xdata().tolist() == [0, 2] and share.get_ydata().tolist() == [0.375, 0.4]
     quick = [ln for ln in ax_t.lines if ln.get_label() == "core_single (--quick)"][0]
@@ -152,17 +157,20 @@ def test_bench_rejects_bad_flags():
 
     assert main(["bench", "--live-seconds", "0", "--history", ""]) == 2
     assert main(["bench", "--live-rigs", "10,x", "--history", ""]) == 2
+    assert main(["bench", "--frame", "1001", "--history", ""]) == 2
+    assert main(["bench", "--frame", "-1", "--history", ""]) == 2
 
 
 @pytest.mark.network
-def test_live_step_smoke():
+@pytest.mark.parametrize("frame", [None, 10])
+def test_live_step_smoke(frame):
     # sim + monitor processes on loopback: every health message arrives, nothing is lost
     from hydromon.tools.bench import live_step
 
     # a 0 ms limit makes every health message late: late_by_second is filled, and the step
     # must still serialise as the history file and --json write it (a run once crashed there)
-    r = live_step(5, seconds=2.0, warm=1.0, grace=3.0, max_p99_ms=0.0)  # grace: no latency bound here
-    assert r["lost"] == 0
+    r = live_step(5, seconds=2.0, warm=1.0, grace=3.0, max_p99_ms=0.0, frame=frame)  # grace: no latency bound here
+    assert r["lost"] == 0 and r["frame"] == frame and r["monitor_us_per_sample"] > 0
     assert r["health_expected"] == 5 * 20 and r["health_received"] == r["health_expected"]
     assert r["p50_ms"] > 0 and r["p99_ms"] >= r["p50_ms"]
     assert r["cpu_monitor"] > 0
@@ -179,3 +187,25 @@ def test_bench_writes_no_history_unless_asked():
     from hydromon.cli.main import build_parser
 
     assert build_parser().parse_args(["bench"]).history is None
+
+
+def test_the_frame_codec_measurement_decodes_every_encoding_to_the_frames_values():
+    from hydromon.tools.bench.frame_codec import measure
+
+    got = measure(5, passes=1)  # raises if an encoding does not give back the frame's values
+    assert set(got) == {"json-msgspec", "json-orjson", "json-base64", "samples"}
+    assert got["json-base64"][2] < got["json-msgspec"][2] < got["samples"][2]  # bytes a sample
+
+
+def test_the_frame_core_measurement_takes_every_sample_both_ways(capsys):
+    from hydromon.engine.core import MonitorCore
+    from hydromon.store.fleetfile import spread_fleet
+    from hydromon.tools.bench.frame_core import main, messages
+
+    spec = spread_fleet(4, noise="realistic")
+    for frame in (7, None):
+        core = MonitorCore()
+        core.process(messages(spec, 0.5, frame))
+        assert core.counters.accepted == 4 * 50 and core.counters.rejected_total == 0
+    assert main(["20", "10", "1"]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 2

@@ -22,6 +22,11 @@ def add_arguments(parser) -> None:
                         help="window per rig count of the live step-up [s] (default 10; docs/performance.md: 60)")
     parser.add_argument("--live-rigs", default=None, metavar="N,N,...",
                         help="rig counts of the live step-up (default 100,200,500,1000,2000,5000)")
+    parser.add_argument("--frame", type=int, default=10, metavar="N",
+                        help="samples a frame in the live step-up (sim --frame N) and in replay_direct_framed "
+                             "(default 10; 0: one message per sample only)")
+    parser.add_argument("--no-live-samples", action="store_true",
+                        help="skip the second live step-up with one message per sample (live_samples)")
     parser.add_argument("--history", default=None, metavar="FILE",
                         help="append the run to this JSON-lines file (default: none; the project's own run "
                              "history is benchmarks/history.jsonl in its repository)")
@@ -56,6 +61,8 @@ def print_table(res, stream=None) -> None:
               f"1 rig, batch 1 (live path); batch 100: {_fmt(cs.get('batch_100'))}/s")
     t.add_row("core_batch", _fmt(res.core_batch), "samples/s",
               f"{d.get('core_batch', {}).get('rigs')} rigs, one sample each per update, {d.get('core_batch', {}).get('threads')} threads")
+    t.add_row("kernel_us_per_sample", _fmt(res.kernel_us_per_sample), "us",
+              "the compiled pipeline alone, one thread (core_batch's one-thread figure)")
     rd = d.get("replay_direct", {})
     t.add_row("replay_direct", _fmt(res.replay_direct), "samples/s",
               f"in-memory MCAP, {rd.get('rigs')} rigs, via {rd.get('via')}; "
@@ -63,6 +70,9 @@ def print_table(res, stream=None) -> None:
     t.add_row("baseline_naive", _fmt(res.baseline_naive), "samples/s",
               f"numpy per sample; core_single is {res.speedup_vs_naive:.1f}x, compiled "
               f"identification alone {d.get('identify_single', {}).get('speedup_vs_naive', float('nan')):.1f}x")
+    if res.replay_direct_framed is not None:
+        t.add_row("replay_direct_framed", _fmt(res.replay_direct_framed), "samples/s",
+                  f"the same recording as frames of {d.get('replay_direct_framed', {}).get('frame')}")
     m = res.memory_per_rig
     t.add_row("memory_per_rig", _fmt(m["state_bytes"]), "bytes",
               f"state arrays; RSS growth {_fmt(m['rss_bytes'])} B/rig over {m['rigs']} rigs")
@@ -71,34 +81,43 @@ def print_table(res, stream=None) -> None:
               f"hydromon sim --rate 0 -> bare zenoh sub, loopback tcp; cpu sub {_fmt(tr.get('subscriber_cpu'))}, "
               f"pub {_fmt(tr.get('publisher_cpu'))} cores; raw zenoh pub loop "
               f"{_fmt(tr.get('raw', {}).get('messages_per_s'))}/s")
-    live = res.live or {}
-    if live.get("rigs"):
-        t.add_row("live", _fmt(live.get("samples_per_s")), "samples/s",
-                  f"{live['rigs']} rigs, lost {live.get('lost')}, p50 {_fmt(live.get('p50_ms'))} ms, "
-                  f"p99 {_fmt(live.get('p99_ms'))} ms")
-    else:
-        t.add_row("live", "-", "", str(live.get("reason", "not measured")))
+    for name, live in (("live", res.live or {}), ("live_samples", res.live_samples)):
+        if live is None:
+            continue
+        framed = f"frames of {live['frame']}, " if live.get("frame") else "one message a sample, "
+        if live.get("rigs"):
+            t.add_row(name, _fmt(live.get("samples_per_s")), "samples/s",
+                      f"{framed}{live['rigs']} rigs, lost {live.get('lost')}, p50 {_fmt(live.get('p50_ms'))} ms, "
+                      f"p99 {_fmt(live.get('p99_ms'))} ms")
+        else:
+            t.add_row(name, "-", "", str(live.get("reason", "not measured")))
+    t.add_row("monitor_us_per_sample", _fmt(res.monitor_us_per_sample), "us",
+              "live's monitor CPU (all threads) per sample, its best step")
     console = Console(file=stream or sys.stdout)
     console.print(t)
     mi = res.machine
     console.print(f"{mi.get('platform')}, {mi.get('cpu_count')} cpus ({mi.get('cpu', '?')}), python "
                   f"{mi.get('python')}, numpy {mi.get('numpy')}, numba {mi.get('numba')}")
-    steps = live.get("steps") or []
-    if steps:
-        st = Table(title="live step-up (sim --rate 1 + monitor, loopback)")
-        for col in ("rigs", "ok", "lost", "health missing", "p50 ms", "p99 ms", "cpu sim", "cpu monitor", "load"):
+    for name, live in (("live", res.live or {}), ("live_samples", res.live_samples or {})):
+        steps = live.get("steps") or []
+        if not steps:
+            continue
+        st = Table(title=f"{name} step-up (sim --rate 1 + monitor, loopback)")
+        for col in ("rigs", "ok", "lost", "health missing", "p50 ms", "p99 ms", "cpu sim", "cpu monitor",
+                    "monitor us/sample", "load"):
             st.add_column(col, justify="right")
         for r in steps:
             if "error" in r:
-                st.add_row(str(r["rigs"]), "error", "", "", "", "", "", "", _fmt(r.get("loadavg_1min")))
+                st.add_row(str(r["rigs"]), "error", "", "", "", "", "", "", "", _fmt(r.get("loadavg_1min")))
                 continue
             st.add_row(str(r["rigs"]), "yes" if r.get("ok") else "no", _fmt(r.get("lost")),
                        _fmt(r.get("health_missing")), _fmt(r.get("p50_ms")), _fmt(r.get("p99_ms")),
-                       _fmt(r.get("cpu_sim")), _fmt(r.get("cpu_monitor")), _fmt(r.get("loadavg_1min")))
+                       _fmt(r.get("cpu_sim")), _fmt(r.get("cpu_monitor")), _fmt(r.get("monitor_us_per_sample")),
+                       _fmt(r.get("loadavg_1min")))
         console.print(st)
         for r in steps:
             if "error" in r:
-                console.print(f"live {r['rigs']} rigs: error: {r['error']}")
+                console.print(f"{name} {r['rigs']} rigs: error: {r['error']}")
 
 
 def run(args) -> int:
@@ -124,6 +143,8 @@ def run(args) -> int:
         return 0
     if not args.live_seconds > 0:
         raise ValueError(f"--live-seconds {args.live_seconds!r} must be > 0")
+    if not 0 <= args.frame <= 1000:
+        raise ValueError(f"--frame {args.frame!r} must be 0..1000 samples")
     kw = {}
     if args.live_rigs:
         try:
@@ -133,7 +154,8 @@ def run(args) -> int:
         if not steps or min(steps) < 1:
             raise ValueError(f"--live-rigs {args.live_rigs!r}: rig counts must be >= 1")
         kw["live_steps"] = steps
-    opts = BenchOptions(quick=args.quick, live=not args.no_live, live_seconds=args.live_seconds, **kw)
+    opts = BenchOptions(quick=args.quick, live=not args.no_live, live_seconds=args.live_seconds,
+                        frame=args.frame or None, live_samples=not args.no_live_samples, **kw)
     res = run_bench(opts)
     if args.history:
         path = Path(args.history)

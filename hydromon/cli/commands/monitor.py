@@ -12,7 +12,7 @@ from hydromon.cli.ranges import add_ranges_argument, ranges_from_args
 from hydromon.cli.stop import stop_on_signals
 
 NAME = "monitor"
-HELP = "grade every rig on <namespace>/rig/*/sample and publish <namespace>/rig/<id>/health"
+HELP = "grade every rig on <namespace>/rig/*/sample (and .../frame) and publish <namespace>/rig/<id>/health"
 KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
 EXAMPLES = (
     'hydromon monitor --mode client --connect tcp/127.0.0.1:7447',

@@ -36,7 +36,7 @@ def add_arguments(parser) -> None:
                         help="replay only topics matching this zenoh key expression, e.g. 'hydro/rig/*/sample' "
                         "('*' one chunk, '**' any chunks; repeatable; default: everything, recorded verdicts "
                         "included: to re-grade with a live monitor give --keys 'hydro/rig/*/sample' "
-                        "--keys 'hydro/rig/*/config')")
+                        "--keys 'hydro/rig/*/frame' --keys 'hydro/rig/*/config')")
     parser.add_argument("--start", type=float, default=None, metavar="S",
                         help="start this many seconds after the recording's first message")
     parser.add_argument("--duration", type=float, default=None, metavar="S",

@@ -53,6 +53,11 @@ def add_arguments(parser) -> None:
                    help="rig time to simulate [s] (default: until Ctrl-C; required with --to-*)")
     r.add_argument("--block", type=int, default=None, metavar="K",
                    help="samples per rig per step, >= 1 (default 10)")
+    r.add_argument("--frame", type=int, default=None, metavar="N",
+                   help="publish frames of N consecutive samples per rig on <namespace>/rig/<id>/frame, one "
+                   "message every N samples (1..1000; 10 at 100 Hz is one per 100 ms), instead of one message "
+                   "per sample; each rig's frames end at its own phase, so a fleet's frames come spread over "
+                   "the N samples; --to-mcap writes frames too (all rigs' on the same samples)")
     r.add_argument("--to-csv", metavar="FILE", help="write the run as CSV t,ug,x1,x3,x4,x5 (SI), no bus: one rig "
                    "into FILE; a fleet of several (without --rig) one file per rig, FILE-<rig>.csv, or DIR/<rig>.csv "
                    "when FILE is a directory (each written to a temporary file beside it, renamed into place when "
@@ -110,13 +115,18 @@ class Progress:
 
 def check_args(args, spec) -> None:
     """Every option's check, before a file or the bus is touched (ValueError names the option)."""
-    from hydromon.store import simfiles
     from hydromon.cli import checks
-    from hydromon.contract import check_namespace
+    from hydromon.contract import FRAME_MAX, check_namespace
+    from hydromon.store import simfiles
 
     checks.non_negative("--rate", args.rate)
     checks.positive("--duration", args.duration)
     checks.at_least("--block", args.block, 1)
+    checks.at_least("--frame", args.frame, 1)
+    if args.frame is not None and args.frame > FRAME_MAX:
+        raise ValueError(f"--frame {args.frame}: at most {FRAME_MAX} samples a frame")
+    if args.frame is not None and args.to_csv:
+        raise ValueError("--frame goes with the bus or --to-mcap; a CSV has one sample a line")
     check_namespace(args.namespace)
     if not (args.to_csv or args.to_mcap):
         if args.rig:
@@ -169,8 +179,8 @@ def run(args) -> int:
     from pydantic import ValidationError
 
     from hydromon.bus import sim as simnode
-    from hydromon.store import simfiles
     from hydromon.cli.checks import replace_on_success
+    from hydromon.store import simfiles
     from hydromon.store.fleetfile import brief_error
 
     try:
@@ -191,7 +201,7 @@ def run(args) -> int:
                 one = simfiles.select_rig(spec, args.rig) if args.rig else spec
                 f = files.enter_context(replace_on_success(args.to_mcap, "wb"))
                 n = simfiles.write_mcap(one, args.duration, f, namespace=args.namespace,
-                                       on_block=Progress(f"--to-mcap {args.to_mcap}"))
+                                       on_block=Progress(f"--to-mcap {args.to_mcap}"), frame=args.frame)
         if args.to_csv:
             print(f"hydromon sim: {rows} samples of {len(targets)} rig(s) -> {', '.join(str(p) for _, p in targets)}",
                   file=sys.stderr)
@@ -202,11 +212,13 @@ def run(args) -> int:
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
     try:
         with session_from_args(args) as session:
-            print(f"hydromon sim: {len(spec.rigs)} rig(s) on {args.namespace}/rig/*/sample at "
+            sent = "sample" if args.frame is None else f"frame (frames of {args.frame} samples)"
+            print(f"hydromon sim: {len(spec.rigs)} rig(s) on {args.namespace}/rig/*/{sent} at "
                   f"{'max speed' if args.rate == 0 else f'{args.rate:g}x real time'}", file=sys.stderr, flush=True)
             stats = simnode.run_sim(session, spec, namespace=args.namespace, rate=args.rate,
                                     duration=args.duration, stop_event=stop,
-                                    block=simnode.DEFAULT_BLOCK if args.block is None else args.block)
+                                    block=simnode.DEFAULT_BLOCK if args.block is None else args.block,
+                                    frame=args.frame)
     finally:
         restore_signals()
     print(f"hydromon sim: {stats.samples} samples x {len(spec.rigs)} rig(s), {stats.published} messages in "

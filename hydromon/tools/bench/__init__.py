@@ -32,9 +32,18 @@ transport_ceiling
     FIFO channel; messages/s received. ``raw`` in the details: the same subscriber fed by a
     zenoh-python loop of pre-built payloads (what zenoh-python itself carries here).
 live
-    ``hydromon sim --rate 1`` and ``hydromon monitor`` as separate processes, stepping up the
-    rig count (:func:`bench_live`, :func:`live_step`): the largest count with no sample lost,
-    every health message on time and p99 sample-to-health latency < 50 ms.
+    ``hydromon sim --rate 1 --frame N`` (frames of N samples, default 10) and ``hydromon monitor``
+    as separate processes, stepping up the rig count (:func:`bench_live`, :func:`live_step`): the
+    largest count with no sample lost, every health message on time and p99 latency < 50 ms
+    (from the deadline of the last sample of the frame that carried the graded sample).
+    ``live_samples``: the same with one message per sample.
+kernel_us_per_sample
+    The compiled pipeline alone on one thread: 1e6 / core_batch's one-thread figure [us].
+monitor_us_per_sample
+    The monitor process's CPU time per sample graded in live's best step [us] (all its
+    threads: zenoh's receive thread, decoding, the kernel, health).
+replay_direct_framed
+    replay_direct of the same recording written as frames of N samples.
 
 Every figure shares the machine with whatever else runs on it; the load average is recorded
 with each run (``machine.loadavg_1min*``, per live step ``loadavg_1min``).

@@ -169,8 +169,11 @@ def bench_memory(n_rigs: int = 10_000) -> dict:
 
 # -- replay -------------------------------------------------------------------------------------
 
-def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int = 3) -> dict:
+def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int = 3, frame: int | None = None) -> dict:
     """samples/s of a recording (in-memory MCAP) read, decoded, validated and graded.
+
+    With ``frame`` N the recording holds frames of N samples (``hydromon sim --to-mcap --frame N``)
+    and only the ``monitor_core`` path is measured.
 
     Two paths over the same ``hydromon sim --to-mcap``-style recording of ``n_rigs`` rigs:
     ``monitor_core`` (the headline): :func:`hydromon.store.mcap_read.read_recording` into
@@ -188,7 +191,7 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
 
     spec = spread_fleet(n_rigs, profile="paper-var", noise="realistic")
     buf = io.BytesIO()
-    write_mcap(spec, duration, buf)
+    write_mcap(spec, duration, buf, frame=frame)
     data = buf.getvalue()
     n_samples = n_rigs * int(round(duration * 100.0))
     chunk = 4096
@@ -218,8 +221,9 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
         if count != n_samples:
             raise RuntimeError(f"replay read {count} samples, expected {n_samples}")
 
-    out = {"rigs": n_rigs, "samples": n_samples, "mcap_bytes": len(data)}
-    out["pydantic"] = _median_rate(n_samples, pydantic_pass, repeats)
+    out = {"rigs": n_rigs, "samples": n_samples, "mcap_bytes": len(data), "frame": frame}
+    if frame is None:
+        out["pydantic"] = _median_rate(n_samples, pydantic_pass, repeats)
     try:
         from hydromon.engine.core import MonitorCore
     except ImportError:
@@ -238,6 +242,6 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
                 raise RuntimeError(f"replay accepted {core.counters.accepted} samples, expected {n_samples}")
 
         out["monitor_core"] = _median_rate(n_samples, core_pass, repeats)
-    out["samples_per_s"] = out.get("monitor_core", out["pydantic"])
+    out["samples_per_s"] = out.get("monitor_core", out.get("pydantic"))
     out["via"] = "monitor_core" if "monitor_core" in out else "pydantic"
     return out

@@ -15,7 +15,6 @@ import orjson
 
 from .procs import _cpu_seconds, _log, _stop, _wait_for
 
-
 _MON_SUMMARY = re.compile(r"(\d+) rig\(s\), (\d+) samples, (\d+) health messages; rejected: (.*); "
                           r"dropped seq (\d+), gaps (\d+) \((\d+) samples missing\)")
 _SIM_SUMMARY = re.compile(r"(\d+) samples x (\d+) rig\(s\), (\d+) messages in ([\d.]+) s; max lateness ([\d.]+) ms")
@@ -23,8 +22,9 @@ _SIM_SUMMARY = re.compile(r"(\d+) samples x (\d+) rig\(s\), (\d+) messages in ([
 
 def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: float = 1.0,
               eval_every: int = 10, h: float = 0.01, max_p99_ms: float = 50.0,
-              monitor_args: tuple = (), sim_args: tuple = ()) -> dict:
-    """Run ``hydromon sim --rigs N --rate 1`` and ``hydromon monitor`` as processes on loopback.
+              monitor_args: tuple = (), sim_args: tuple = (), frame: int | None = None) -> dict:
+    """Run ``hydromon sim --rigs N --rate 1`` (with ``frame``: ``--frame N``) and ``hydromon monitor``
+    as processes on loopback.
 
     Topology: this process opens a probe session listening on P; the monitor listens on A and
     connects to P; the sim connects to A and P (every pair talks directly). The probe records
@@ -32,7 +32,13 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     the first rig's samples. The sim sends sample k of every rig at the deadline t0 + k h, so
     t0 is estimated as min_k(arrival_k - k h) over the first rig (it exceeds the true t0 by the
     smallest transport delay, so latencies are under-stated by that, ~0.1 ms) and a health
-    message's latency is its arrival minus the deadline of the sample seq it reports.
+    message's latency is its arrival minus the deadline of the sample seq it reports. With frames,
+    the probe takes the first rig's frames (a frame is sent when its last sample is due) and a
+    health message's latency is counted from the deadline of the last sample of the frame that
+    holds the sample it reports (it could not be computed before that frame was sent; a rig's
+    frames end at its phase, ``hydromon.bus.framer``).
+    ``monitor_us_per_sample`` is the monitor's CPU time (all its threads) in the window per sample
+    it graded there [us].
 
     Counted over the window [t0 + warm, t0 + warm + seconds] of deadlines (warm counted from
     the first health message when that comes later than the first sample): ``lost`` = samples
@@ -42,7 +48,6 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     ``ok`` = nothing lost or missing and p99 < ``max_p99_ms``.
     """
     import tempfile
-
 
     from hydromon.bus.session import listening_session, on_a_free_port
 
@@ -55,7 +60,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         samples.append((clock(), s.payload.to_bytes()))
 
     def on_health(s):
-        health.append((clock(), s.payload.to_bytes()))
+        health.append((clock(), s.payload.to_bytes(), str(s.key_expr)))
 
     py = [sys.executable, "-m", "hydromon.cli"]
     from hydromon.bus.quietgc import QuietGC
@@ -64,7 +69,8 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     # delay them and count as latency; collections run in the sleeps below instead
     with tempfile.TemporaryDirectory(prefix="hydromon-bench-") as tmp, \
             listening_session("peer") as (probe, ep_p), QuietGC() as quiet:
-        sub_s = probe.declare_subscriber(f"hydro/rig/{first_rig}/sample", on_sample)
+        leaf = "sample" if frame is None else "frame"
+        sub_s = probe.declare_subscriber(f"hydro/rig/{first_rig}/{leaf}", on_sample)
         sub_h = probe.declare_subscriber("hydro/rig/*/health", on_health)
         mon_log, sim_log = os.path.join(tmp, "monitor.log"), os.path.join(tmp, "sim.log")
         with open(mon_log, "w") as ml, open(sim_log, "w") as sl:
@@ -85,8 +91,10 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
             sim = None
             try:
                 time.sleep(1.0)  # subscribers declared and routes known
+                framing = () if frame is None else ("--frame", str(frame))
                 sim = subprocess.Popen(py + ["sim", "--rigs", str(n_rigs), "--rate", "1", "--connect", ep_a,
-                                             "--connect", ep_p, *sim_args], stderr=sl, stdout=subprocess.DEVNULL)
+                                             "--connect", ep_p, *framing, *sim_args], stderr=sl,
+                                       stdout=subprocess.DEVNULL)
                 end = clock() + 120
                 while not samples and clock() < end:
                     if sim.poll() is not None:
@@ -125,14 +133,26 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
             sub_h.undeclare()
         mon_text, sim_text = open(mon_log).read(), open(sim_log).read()
 
-    # t0 of the sim's deadlines, from the first rig's samples
-    first = [(t, orjson.loads(p)["seq"]) for t, p in samples]  # the first rig's (arrival, seq)
+    # t0 of the sim's deadlines, from the first rig's samples (frames: sent at their last one's)
+    first = [(t, _last_seq(orjson.loads(p))) for t, p in samples]  # the first rig's (arrival, seq)
     t0 = min(t - k * h for t, k in first)
+    # the sample that ended the frame holding seq: each rig's frames end at its phase (hydromon.bus.framer)
+    from monitor.evaluations import eval_phase
+
+    phase = {}
+
+    def sent(key: str, seq: int) -> int:
+        if frame is None:
+            return seq
+        rig = key.split("/")[-2]
+        if rig not in phase:
+            phase[rig] = eval_phase(rig, frame)
+        return seq + (-(seq + 1 + phase[rig])) % frame
     lo, hi = t0 + warm, t0 + warm + seconds
     lat, late = [], Counter()
-    for t, p in health:
+    for t, p, key in health:
         seq = orjson.loads(p)["seq"]
-        dl = t0 + seq * h
+        dl = t0 + sent(key, seq) * h
         if lo <= dl < hi:
             lat.append(t - dl)
             if t - dl >= max_p99_ms * 1e-3:
@@ -140,7 +160,6 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     k_lo, k_hi = math.ceil(warm / h - 1e-9), math.ceil((warm + seconds) / h - 1e-9)
     # the monitor staggers the rigs' evaluations (monitor.evaluations.eval_phase): count per phase
     from hydromon.store.fleetfile import spread_fleet
-    from monitor.evaluations import eval_phase
 
     phases = Counter(eval_phase(rid, eval_every) for rid in spread_fleet(n_rigs).ids)
     expected = sum(n * sum(1 for k in range(k_lo, k_hi) if (k + 1 + ph) % eval_every == 0)
@@ -154,6 +173,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     wall = cpu1[3] - cpu0[3]
     out = {
         "rigs": n_rigs,
+        "frame": frame,
         "samples_per_s": len(lat) * eval_every / seconds,
         "offered_samples_per_s": n_rigs / h,
         "lost": lost,
@@ -168,6 +188,9 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         "cpu_sim": (cpu1[0] - cpu0[0]) / wall,
         "cpu_monitor": (cpu1[1] - cpu0[1]) / wall,
         "cpu_probe": (cpu1[2] - cpu0[2]) / wall,
+        # per sample graded in the window (health received x eval_every): the samples offered when
+        # the monitor keeps up, fewer when it falls behind
+        "monitor_us_per_sample": (cpu1[1] - cpu0[1]) / (len(lat) * eval_every) * 1e6 if lat else None,
         "seconds": seconds,
         "warm_s": warm,
         # when the slow health messages came: {second of the window: how many took >= max_p99_ms}
@@ -180,7 +203,14 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
     return out
 
 
-def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, refine: int = 3) -> dict:
+def _last_seq(obj: dict) -> int:
+    """The seq of a sample payload, or of a frame's last sample."""
+    t = obj["t"]
+    return obj["seq"] + len(t) - 1 if type(t) is list else obj["seq"]
+
+
+def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, refine: int = 3,
+               frame: int | None = None) -> dict:
     """Step up the rig count until a step loses a sample or misses p99 < 50 ms, then bisect
     ``refine`` times between the last passing and the first failing count (to a multiple of
     10; three halvings resolve 1000 passing and 2000 failing to 125 rigs, where two would stop
@@ -194,10 +224,11 @@ def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, r
     results = []
 
     def run(n):
-        _log(f"live: {n} rigs for {seconds:g} s (load average {os.getloadavg()[0]:.2f})")
+        what = "samples" if frame is None else f"frames of {frame}"
+        _log(f"live ({what}): {n} rigs for {seconds:g} s (load average {os.getloadavg()[0]:.2f})")
         load = os.getloadavg()[0]
         try:
-            r = live_step(n, seconds)
+            r = live_step(n, seconds, frame=frame)
         except (RuntimeError, OSError, ValueError) as exc:
             r = {"rigs": n, "ok": False, "error": str(exc)}
         r["loadavg_1min"] = load
@@ -228,10 +259,11 @@ def bench_live(steps=(100, 200, 500, 1000, 2000, 5000), seconds: float = 10.0, r
         reason = f"no step passed (tried {', '.join(str(r['rigs']) for r in results)} rigs)"
         if broken:
             reason += f"; error: {results[-1]['error'][:300]}"
-        return {"rigs": None, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
+        return {"rigs": None, "frame": frame, "samples_per_s": None, "lost": None, "p50_ms": None, "p99_ms": None,
                 "reason": reason, "steps": results}
-    out = {k: best.get(k) for k in ("rigs", "samples_per_s", "lost", "p50_ms", "p99_ms", "cpu_sim",
-                                    "cpu_monitor", "cpu_probe", "health_missing", "seconds", "loadavg_1min")}
+    out = {k: best.get(k) for k in ("rigs", "frame", "samples_per_s", "lost", "p50_ms", "p99_ms", "cpu_sim",
+                                    "cpu_monitor", "cpu_probe", "monitor_us_per_sample", "health_missing",
+                                    "seconds", "loadavg_1min")}
     out["limited_by"] = (f"{fail} rigs failed" + (" (error)" if broken else "") if fail is not None
                          else f"largest step tried ({steps[-1]} rigs)")
     out["steps"] = results

@@ -55,6 +55,10 @@ class BenchResult:
     details: dict = field(default_factory=dict)
     timestamp: str = ""
     machine: dict = field(default_factory=dict)
+    kernel_us_per_sample: float | None = None   # the compiled pipeline alone, one thread [us]
+    monitor_us_per_sample: float | None = None  # live's monitor CPU per sample [us] (the frames step-up)
+    replay_direct_framed: float | None = None   # replay_direct of a recording of frames [samples/s]
+    live_samples: dict | None = None            # live's step-up with one message per sample
 
 
 @dataclass(frozen=True)
@@ -64,6 +68,8 @@ class BenchOptions:
     live_seconds: float = 10.0
     live_steps: tuple = (100, 200, 500, 1000, 2000, 5000)
     transport_seconds: float = 5.0
+    frame: int | None = 10          # samples a frame in live and replay_direct_framed (None: samples only)
+    live_samples: bool = True       # also step up live with one message per sample
 
 
 def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
@@ -112,8 +118,14 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
                              "one_thread": cb1, "headline": f"{threads} threads (Fleet(threads=...))"}
 
     _log("replay_direct")
-    rd = bench_replay_direct(n_rigs=2 if q else 10, duration=5.0 if q else 60.0, repeats=1 if q else 3)
+    rd_kw = dict(n_rigs=2 if q else 10, duration=5.0 if q else 60.0, repeats=1 if q else 3)
+    rd = bench_replay_direct(**rd_kw)
     details["replay_direct"] = rd
+    rdf = None
+    if opts.frame is not None:
+        _log(f"replay_direct of frames of {opts.frame}")
+        details["replay_direct_framed"] = bench_replay_direct(**rd_kw, frame=opts.frame)
+        rdf = details["replay_direct_framed"]["samples_per_s"]
 
     _log("memory_per_rig")
     mem = bench_memory(1000 if q else 10_000)
@@ -122,12 +134,17 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
     tr = bench_transport(seconds=1.0 if q else opts.transport_seconds, n_keys=100 if q else 1000)
     details["transport_ceiling"] = tr
 
-    live = None
-    if opts.live:
+    live = live_samples = None
+
+    def step_up(frame):
         if q:  # a smoke run: one small step
-            live = bench_live(opts.live_steps[:1], seconds=min(opts.live_seconds, 3.0), refine=0)
-        else:
-            live = bench_live(opts.live_steps, seconds=opts.live_seconds)
+            return bench_live(opts.live_steps[:1], seconds=min(opts.live_seconds, 3.0), refine=0, frame=frame)
+        return bench_live(opts.live_steps, seconds=opts.live_seconds, frame=frame)
+
+    if opts.live:
+        live = step_up(opts.frame)
+        if opts.frame is not None and opts.live_samples:
+            live_samples = step_up(None)
     else:
         live = {"rigs": None, "reason": "skipped (--no-live)"}
 
@@ -137,6 +154,8 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
         speedup_vs_naive=s1 / naive, details={**details, "speedup_batch100_vs_naive": s100 / naive},
         timestamp=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         machine={**machine_info(), "loadavg_1min_start": load_start},
+        kernel_us_per_sample=1e6 / cb1, monitor_us_per_sample=(live or {}).get("monitor_us_per_sample"),
+        replay_direct_framed=rdf, live_samples=live_samples,
     )
 
 
