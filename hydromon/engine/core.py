@@ -236,19 +236,11 @@ class MonitorCore(RegularBatch, RigTable, FrameInput):
         try:
             vals = parse_sample(decode_json(payload))
         except Rejected as exc:
-            self._reject(exc.reason, key, exc.detail, self.rigs.get(rig_id))
-            if rig_id not in self.rigs and len(self._early_bad) < self.max_rigs:  # for the rig's first health
-                self._early_bad.add(rig_id)
+            self._refused(rig_id, key, exc)
             return
-        if rig_id not in self.rigs and len(self.rigs) >= self.max_rigs:
-            self._reject("too-many-rigs", key, self._full())
-            return
-        rig = self._rig(rig_id)
-        self._known[key] = rig
-        if rig_id in self._early_bad:
-            self._early_bad.discard(rig_id)
-            self._bad[rig.row] = True
-        self._take(rig.row, vals, out)
+        rig = self._admit(rig_id, key, self._known)
+        if rig is not None:
+            self._take(rig.row, vals, out)
 
     def _take(self, r: int, vals: tuple, out: list) -> None:
         """A valid sample of the rig in row ``r`` through its sequence rule

@@ -147,19 +147,12 @@ class FrameInput:
         try:
             seq, cols, u = frame_columns(payload)
         except Rejected as exc:
-            self._reject(exc.reason, key, exc.detail, rig or self.rigs.get(rig_id))
-            if rig is None and rig_id not in self.rigs and len(self._early_bad) < self.max_rigs:
-                self._early_bad.add(rig_id)  # for the rig's first health
+            self._refused(rig_id, key, exc, rig)
             return
         if rig is None:
-            if rig_id not in self.rigs and len(self.rigs) >= self.max_rigs:
-                self._reject("too-many-rigs", key, self._full())
+            rig = self._admit(rig_id, key, self._frame_rigs)
+            if rig is None:
                 return
-            rig = self._rig(rig_id)
-            self._frame_rigs[key] = rig
-            if rig_id in self._early_bad:
-                self._early_bad.discard(rig_id)
-                self._bad[rig.row] = True
         r, n = rig.row, len(cols[0])
         last = int(self._last[r])
         if u is None and last >= 0 and seq == last + 1 and self._gap[r] < 0 and not self._bad[r] \

@@ -64,6 +64,26 @@ class RigTable:
         rig = self.rigs.get(rig_id)
         return (None, None) if rig is None else self.verdicts.ranges_of(rig.row)
 
+    def _refused(self, rig_id: str | None, key: str, exc, rig: Rig | None = None) -> None:
+        """A sample or frame of ``rig`` (or of ``rig_id``) rejected (``exc``: ``Rejected``): counted
+        and logged; a rig not seen yet has its first health say bad-input."""
+        rig = rig or self.rigs.get(rig_id)
+        self._reject(exc.reason, key, exc.detail, rig)
+        if rig is None and len(self._early_bad) < self.max_rigs:
+            self._early_bad.add(rig_id)
+
+    def _admit(self, rig_id: str, key: str, known: dict) -> Rig | None:
+        """The rig of the first valid message on ``key`` (remembered in ``known``, key -> rig), added
+        if new; None when the core is full (the message refused as too-many-rigs)."""
+        if rig_id not in self.rigs and len(self.rigs) >= self.max_rigs:
+            self._reject("too-many-rigs", key, self._full())
+            return None
+        rig = known[key] = self._rig(rig_id)
+        if rig_id in self._early_bad:
+            self._early_bad.discard(rig_id)
+            self._bad[rig.row] = True
+        return rig
+
     def _full(self) -> str:
         return (f"this monitor holds its limit of {self.max_rigs} rigs (--max-rigs); a new rig id is refused "
                 "(shard a larger plant with --rigs PATTERN)")
