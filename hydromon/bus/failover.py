@@ -25,6 +25,8 @@ import time
 
 import zenoh
 
+from hydromon.contract import failover_key
+
 __all__ = ["Failover", "group_name"]
 
 
@@ -58,7 +60,7 @@ class Failover:
     def __init__(self, session, namespace: str, group: str, node: str, standby: bool = False,
                  grace_s: float = 2.0, probe_s: float = 1.0, clock=time.monotonic, wall_ns=time.time_ns):
         self.session, self.node, self.standby = session, node, bool(standby)
-        self.prefix = f"{namespace}/failover/{group}"
+        self.prefix = failover_key(group, namespace)
         self.clock, self.wall_ns = clock, wall_ns
         self.others: set[str] = set()  # the group's live tokens, this node's own excepted
         self.mine: str | None = None

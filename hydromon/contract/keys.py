@@ -76,6 +76,14 @@ def liveliness_key(node: str, ns: str = DEFAULT_NAMESPACE) -> str:
     return f"{check_namespace(ns)}/monitor/{node}"
 
 
+def failover_key(group: str, ns: str = DEFAULT_NAMESPACE) -> str:
+    """``<ns>/failover/<group>``: under it, a liveliness token ``<claim>-<node>`` of the monitor of
+    failover group ``group`` that publishes (``hydromon.bus.failover``)."""
+    if not valid_rig_id(group):
+        raise ValueError(f"failover group {group!r} must be 1-64 chars of [A-Za-z0-9_-]")
+    return f"{check_namespace(ns)}/failover/{group}"
+
+
 def rig_key_parts(key: str, ns: str | None = DEFAULT_NAMESPACE) -> tuple[str, str, str] | str:
     """``(namespace, rig_id, leaf)`` of a rig key of the contract, else why not: a message
     starting with ``bad-key:`` (not a rig key) or ``bad-rig-id:`` (the layout, but an id

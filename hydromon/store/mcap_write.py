@@ -66,7 +66,7 @@ class RecordingWriter:
         model = LEAF_MODELS.get(leaf)
         name = f"hydromon.{model.__name__}" if model else "hydromon.Any"
         if name not in self._schemas:
-            schema = model.model_json_schema() if model else {}
+            schema = model.model_json_schema(by_alias=True) if model else {}
             self._schemas[name] = self._writer.register_schema(
                 name=name, encoding="jsonschema", data=json.dumps(schema).encode())
         return self._schemas[name]

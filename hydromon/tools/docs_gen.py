@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from hydromon import contract
-from hydromon.contract import (DEFAULT_NAMESPACE, GRADES, PARAM_NAMES, PARAM_UNITS, STATUSES, Frame, Health, RigConfig,
+from hydromon.contract import (DEFAULT_NAMESPACE, GRADES, PARAM_NAMES, PARAM_UNITS, STATUSES, Event, Frame, Health, RigConfig,
                                Sample)
 
 __all__ = ["render", "DOC_PATH", "main"]
@@ -33,7 +33,12 @@ _KEYS = (
     (_pattern(contract.frame_key, "<id>"), "rig / plant_sim (`--frame N`)", Frame),
     (_pattern(contract.health_key, "<id>"), "monitor", Health),
     (_pattern(contract.config_key, "<id>"), "rig / plant_sim (once and on change)", RigConfig),
+    (_pattern(contract.event_key, "<id>"), "monitor, when a rig's grade or status changes and holds", Event),
+    (_pattern(contract.ranges_key, "<id>"), "monitor, answering a query",
+     "the health ranges the rig is graded on (`Ranges` JSON, as `hydromon commission` writes them)"),
     (_pattern(contract.liveliness_key, "<node>"), "monitor", "liveliness token: the node is up"),
+    (_pattern(contract.failover_key, "<group>") + "/<claim>-<node>", "monitor, while it publishes for its "
+     "failover group", "liveliness token: this node publishes for the group's rigs"),
 )
 
 # what each parameter of `params` is (units come from contract.PARAM_UNITS)
@@ -59,8 +64,9 @@ _RECORDINGS = """\
 
 - one channel per key expression; the topic is the key, `message encoding: json`;
 - the channel's schema is the JSON Schema above for the key's leaf (`sample`, `frame`, `health`,
-  `config`; other keys get the permissive schema `{}`), `schema encoding: jsonschema`,
-  schema names `hydromon.Sample`, `hydromon.Frame`, `hydromon.Health`, `hydromon.RigConfig`, `hydromon.Any`;
+  `event`, `config`; other keys get the permissive schema `{}`), `schema encoding: jsonschema`,
+  schema names `hydromon.Sample`, `hydromon.Frame`, `hydromon.Health`, `hydromon.Event`,
+  `hydromon.RigConfig`, `hydromon.Any`;
 - `log_time` is when the recorder received the message, `publish_time` the payload's `t`
   (when the payload is a JSON object with a numeric `t`; a frame's first time `t[0]`), both
   integer nanoseconds;
@@ -129,7 +135,7 @@ def render() -> str:
         "## Payloads",
         "",
     ]
-    for model in (Sample, Frame, Health, RigConfig):
+    for model in (Sample, Frame, Health, Event, RigConfig):
         out += [
             f"### {model.__name__}",
             "",
@@ -137,7 +143,7 @@ def render() -> str:
             "JSON Schema (the MCAP channel schema):",
             "",
             "```json",
-            json.dumps(model.model_json_schema(), indent=2),
+            json.dumps(model.model_json_schema(by_alias=True), indent=2),
             "```",
             "",
         ]

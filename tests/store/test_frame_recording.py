@@ -54,3 +54,16 @@ def test_frames_read_as_the_same_samples_and_replay_to_the_same_health():
     h2, c2 = replay_direct(io.BytesIO(frames), core=MonitorCore())
     assert c1.counters.accepted == c2.counters.accepted == 5 * 400
     assert sorted(h1) == sorted(h2) and len(h1) == 5 * 40
+
+
+def test_every_message_of_a_recording_obeys_its_channels_schema():
+    """The golden recording (samples, configs, health, events), read by the independent reader."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "recordings" / "table4-realistic.mcap"
+    seen = {}
+    with open(path, "rb") as f:
+        for schema, _, message in make_reader(f).iter_messages():
+            v = seen.setdefault(schema.name, jsonschema.Draft202012Validator(json.loads(schema.data)))
+            v.validate(json.loads(message.data))
+    assert {"hydromon.Sample", "hydromon.Health", "hydromon.Event", "hydromon.RigConfig"} <= set(seen)
