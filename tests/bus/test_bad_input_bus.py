@@ -177,8 +177,9 @@ def test_monitor_process_survives_bad_input_counts_it_and_grades_the_good_rigs(t
     # this session listens and the monitor process connects to it, so the two meet as soon as
     # the process opens its session (not at one of zenoh's connect retries, every 4 s at most)
     with open(log_path, "wb") as log, listening_session() as (s, ep):
+        # --memory none: the estimators of the clean run's in-memory core (a growing window)
         proc = subprocess.Popen([sys.executable, "-m", "hydromon.cli", "monitor", "--connect", ep, "--node", "bad-in",
-                                 "--stale-after", "600"],
+                                 "--stale-after", "600", "--memory", "none"],
                                 stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 env={**os.environ, "PYTHONUNBUFFERED": "1"})
         try:

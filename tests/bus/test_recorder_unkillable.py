@@ -26,7 +26,8 @@ RIG = "r1"
 
 # -- time fields ------------------------------------------------------------------------------------
 @pytest.mark.parametrize("t", [1e300, -1e300, -1, -0.5, 1.8446744073709552e10, 2**64, 2**63 - 1, 10**30,
-                               "nan", "NaN", "inf", "-Infinity", "1e300", None, True, [1.0], {"s": 1}])
+                               "nan", "NaN", "inf", "-Infinity", "1e300", None, True, [], [[1.0]], ["1"], [1e300],
+                               {"s": 1}])
 def test_a_time_that_no_timestamp_holds_is_not_used_as_one(t):
     assert publish_time_ns({"t": t}, 777) == 777
 
@@ -34,6 +35,7 @@ def test_a_time_that_no_timestamp_holds_is_not_used_as_one(t):
 def test_a_plausible_time_is_used_to_the_nanosecond():
     assert publish_time_ns({"t": 1.5}, 7) == 1_500_000_000
     assert publish_time_ns({"t": 18446744073}, 7) == 18446744073 * NS  # the last whole second uint64 ns holds
+    assert publish_time_ns({"t": [2.5, 2.51]}, 7) == 2_500_000_000  # a frame: its first sample's time
 
 
 # -- everything the bus can send --------------------------------------------------------------------
