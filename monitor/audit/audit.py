@@ -294,7 +294,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                 u0, u1, h0 = u1, u1 - h1 * (u1 - u0) / (h1 - h0), h1
                 u1 = min(max(u1, u0 - 1.0), u0 + 1.0)
         tr, _ = _mse_split(fit, split)
-        return _log_ratio(nom_tr, tr), value, fit
+        # an unphysical fit (a friction dip, not a hump) ranks below every physical one
+        return (cand.admissible(fit.theta), _log_ratio(nom_tr, tr)), value, fit
 
     if progress is not None:
         progress(0, len(library), "nominal")
@@ -325,11 +326,11 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                 step **= 0.5
         if best is None:
             continue
-        _, value, fit = best
+        (physical, _), value, fit = best
         tr, te = _mse_split(fit, split)
         score = _log_ratio(nom_te, te) - opt.penalty * cand.n_extra
-        if _log_ratio(nom_tr, tr) <= 0:
-            score = min(score, 0.0)  # no better on the data it was fitted to: noise
+        if _log_ratio(nom_tr, tr) <= 0 or not physical:
+            score = min(score, 0.0)  # no better on the data it was fitted to (noise), or unphysical
         params = nominal_params(fit)
         effect = cand.effects(value, fit.theta)
         gain, fr, sim = math.nan, {}, None

@@ -74,6 +74,10 @@ class Candidate:
         """``Effects`` fields of the fitted extension (theta: block -> column -> value)."""
         raise NotImplementedError
 
+    def admissible(self, theta: dict) -> bool:
+        """Whether a fit is physical (e.g. a friction hump, not a dip); inadmissible fits are not scored."""
+        return True
+
     def describe(self, value, theta: dict) -> dict:
         """The extension's own fitted parameters, SI, for reports."""
         return self.effects(value, theta)
@@ -102,30 +106,46 @@ class LoadOffset(Candidate):
         return {"load_offset": theta["force"]["F_off"]}
 
 
+def _hump(v_s):
+    def col(sig, cfg, x1, v):
+        return np.sign(v) * np.exp(-(v / v_s) ** 2)
+    return col
+
+
 @dataclass(frozen=True, repr=False)
 class StribeckFriction(Candidate):
-    """Stribeck friction: a static (breakaway) level f_c + F_s [N] above the Coulomb level.
+    """Stribeck friction: a hump F_s [N] above Coulomb friction that decays over the Stribeck
+    velocity v_s [m/s], resolved against velocity in the force balance.
 
-    At 100 Hz the piston passes through the Stribeck speeds (|v| < v_s, mm/s to cm/s) within
-    a sample or two, so the sliding rows hardly see the exp(-(v/v_s)^2) term; what the record
-    does show is the piston held at rest against net forces above f_c (stick-slip). The
-    candidate fits F_s to those rest rows; v_s is not identifiable and is set to ``v_s``.
+    The force equation keeps every row whose velocity sign is known (down to a few noise sigmas
+    of the filtered velocity, reversals included as long as the filter window does not hold the
+    reversal instant itself), and the hump enters as the column L[sign(v) exp(-(v/v_s)^2)]: odd
+    in v, so a constant force (a load offset) does not mimic it, and decaying, so Coulomb plus
+    viscous friction (a step and a line) absorb only part of it. v_s is searched on a grid; at
+    rest, the piston is held up to f_c + F_s (the rest rows' dead zone).
     """
 
     name = "stribeck_friction"
-    equation = ("at rest: |A1 x3 - A2 x4 - F_L - K_t x1 - m a| <= f_c + F_s;  "
-                "sliding: sign(v)(f_c + F_s exp(-(v/v_s)^2))")
-    regressors = ("static friction level f_c + F_s on the rest rows (dead zone)",)
-    n_extra = 1
-    caveat = ("at the record's speeds the Stribeck term is nearly collinear with Coulomb + viscous "
-              "friction; only the force that holds the piston at rest shows it")
-    v_s: float = 0.01  # [m/s]
+    equation = ("A1 x3 - A2 x4 - F_L = m a + (B+f_v) v + sign(v) (f_c + F_s exp(-(v/v_s)^2)) + K_t x1;  "
+                "at rest: |A1 x3 - A2 x4 - F_L - K_t x1 - m a| <= f_c + F_s")
+    regressors = ("sign(v) exp(-(v/v_s)^2) (force equation, v_s searched)",
+                  "f_c + F_s as the static level of the rest rows")
+    n_extra = 2
+    caveat = ("at the record's speeds the Stribeck term is partly collinear with Coulomb + viscous "
+              "friction")
+    v_s: float = 0.01  # [m/s] default for a fit without a searched value
 
-    def spec(self, value):
-        return Spec(static_search=True)
+    def grid(self, sig):
+        return [0.005, 0.007, 0.01, 0.014, 0.02]
 
-    def effects(self, value, theta):
-        return {"stribeck_F_s": max(theta["force"]["F_s"], 0.0), "stribeck_v_s": self.v_s}
+    def spec(self, v_s):
+        return Spec(force_cols={"F_s": _hump(v_s)}, static_cols=("F_s",))
+
+    def admissible(self, theta):
+        return theta["force"]["F_s"] > 0.0
+
+    def effects(self, v_s, theta):
+        return {"stribeck_F_s": max(theta["force"]["F_s"], 0.0), "stribeck_v_s": v_s}
 
     def free_run_variables(self, params: dict, effect: dict):
         """The friction for an output-error refinement on the training part: f_c, B + f_v,
