@@ -37,6 +37,10 @@ def to_json(result) -> dict:
         ext.update(best.effect)
     return _num({
         "cause": result.cause,
+        "causes": list(result.causes),
+        "verdict": result.words,
+        "obeys_model": result.obeys,
+        "structure": result.structure,
         "confident": result.confident,
         "note": result.note,
         "candidates": [{"name": c.name, "score": c.score, "gain": c.gain, "value": c.value,
@@ -49,8 +53,10 @@ def to_json(result) -> dict:
 
 def summary(result) -> str:
     """A few lines for a terminal."""
-    lines = [f"cause: {result.cause}" + ("" if result.confident else "  (not confident)")]
-    if result.note:
+    lines = [f"cause: {' + '.join(result.causes) or result.cause}" + ("" if result.confident else "  (not confident)")]
+    if result.words:
+        lines.append(f"verdict: {result.words}")
+    if result.note and result.note != result.words:
         lines.append(f"note: {result.note}")
     lines.append(f"{'candidate':22s} {'score':>9s} {'free-run gain':>14s}")
     for c in result.candidates:
@@ -142,7 +148,9 @@ def write_report(result, directory, what: str = "") -> Path:
 
     fr = result.gain
     md = [f"# Model audit\n\n**Cause: {result.cause}**" + ("" if result.confident else " (not confident)"), ""]
-    if result.note:
+    if result.words:
+        md += [result.words, ""]
+    if result.note and result.note != result.words:
         md += [result.note, ""]
     md += ["## Candidates (held-out score, higher is better; free-run gain = error reduction)", "",
            _md_table([(c.name, f"{c.score:.2f}", f"{c.gain:.2f}",

@@ -43,7 +43,9 @@ from plant_sim.params import Effects
 
 from .candidates import LIBRARY
 from .freerun import SENSORS, channel_scores, free_run
-from .residuals import BLOCKS, Fit, build_blocks, fit_blocks, nominal_params, signals, Spec
+from .residuals import BLOCKS, Fit, build_blocks, fit_blocks, merge_specs, nominal_params, signals, Spec
+from .verdict import EQUATION_OF, POSITIVE_AUDIT, impossible_params  # noqa: F401  (re-exported)
+from .decide import decide
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
 
@@ -130,7 +132,18 @@ class AuditResult:
     Attributes
     ----------
     cause : str
-        The effect name, or "none".
+        The effect name (the stronger one when two are named), "none", or "unexplained" (the
+        residual keeps structure no candidate explains, or the nominal fit is impossible and no
+        extension restores it).
+    causes : tuple of str
+        Every effect named (one or two; empty for "none" and "unexplained").
+    words : str
+        The verdict for a person: the cause in words and units, what it did to the nominal
+        parameters, the gain, the confidence; or which equation fails and how.
+    structure : dict
+        Block -> {"share": held-out residual variance beyond noise / variance of the block's
+        left side [-], "like": the signal the residual is most correlated with, "r": that
+        correlation [-]} of the final model.
     confident : bool
         False when the best candidates cannot be told apart (see ``note``).
     note : str
@@ -165,6 +178,11 @@ class AuditResult:
     measured: np.ndarray = field(repr=False)
     simulated_nominal: np.ndarray | None = field(default=None, repr=False)
     residuals_nominal: dict = field(default_factory=dict, repr=False)
+    causes: tuple = ()
+    words: str = ""
+    structure: dict = field(default_factory=dict)
+    obeys: bool = True
+    """False when the nominal fit is impossible and no candidate restores it."""
 
     @property
     def best(self) -> CandidateResult | None:
@@ -227,17 +245,6 @@ def _output_error(cand, params, effect, s, cfg, measured, split, fallback, v0, m
     return to_model(best.x)
 
 
-# Positive on every rig and pinned by the chamber and valve equations (the force balance's m
-# and B + f_v are left out: an unmodelled load offset, one of the effects the audit names, drives
-# the nominal B + f_v negative; monitor.plausibility)
-POSITIVE_AUDIT = ("inv_beta_e", "CdW_sqrt_rho", "K_sv")
-
-
-def impossible_params(params: dict) -> list[str]:
-    """The POSITIVE_AUDIT parameters of a whole-record identification [SI] that are not positive."""
-    return [k for k in POSITIVE_AUDIT if params.get(k, 1.0) <= 0]  # NaN: unidentified, not impossible
-
-
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
           library=LIBRARY, progress=None) -> AuditResult:
     """Audit one record.
@@ -268,9 +275,13 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     nom_tr, nom_te = _mse_split(nominal, split)
     test = slice(split, sig.n)
     measured = s[:, 1:]
+    # a nominal fit with impossible estimates proves nothing by equation error alone: an
+    # extension is named then only when its free run also simulates the held-out part better
+    impossible = impossible_params(p_nom)
+    run_free = opt.free_run or bool(impossible)
 
     fr_nom, sim_nom = None, None
-    if opt.free_run:
+    if run_free:
         run = free_run(s, cfg, p_nom, v0=float(sig.vl[0]))
         sim_nom = run.measured
         fr_nom = channel_scores(measured, sim_nom, test)
@@ -299,7 +310,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
 
     if progress is not None:
         progress(0, len(library), "nominal")
-    results = []
+    results, fits = [], {}
     for done, cand in enumerate(library, 1):
         if progress is not None and done > 1:
             progress(done - 1, len(library), library[done - 2].name)
@@ -334,7 +345,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         params = nominal_params(fit)
         effect = cand.effects(value, fit.theta)
         gain, fr, sim = math.nan, {}, None
-        if opt.free_run:
+        if run_free and (opt.free_run or score > opt.threshold):
             # the simulated model: the searched value polished by free-run error on the
             # TRAINING part (equation error biases it a little, and a free run can be sensitive)
             models = [(params, effect)]
@@ -364,41 +375,31 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             train_ratio={g: tr[g] / nom_tr[g] if nom_tr[g] > 0 else 1.0 for g in BLOCKS},
             gain=float(gain), freerun=fr, params=params, effect=effect, caveat=cand.caveat, simulated=sim,
             residuals={g: (fit.blocks[g].rows, fit.residuals[g]) for g in BLOCKS}))
+        fits[cand.name] = (cand, value, fit)
     if progress is not None:
         progress(len(library), len(library), library[-1].name)
     results.sort(key=lambda c: -c.score)
 
-    top = results[0]
-    cause, confident, note = "none", True, ""
-    impossible = impossible_params(p_nom)
-    if impossible:
-        # no extension explains a record that does not obey the model at all (wrong units, signs,
-        # zeros or rig constants): naming one would be confidently wrong
-        why = f"impossible estimates ({', '.join(f'{k} = {p_nom[k]:.3g}' for k in impossible)}; each must be positive)"
-        note = (f"the record does not obey the model: {why}; check the units (SI: m, Pa, V), the signs and zeros "
-                "of x1, x3, x4, x5 and ug, and the rig constants")
-        confident = False
-    elif top.score > opt.threshold:
-        cause = top.name
-        close = [c.name for c in results[1:] if c.score > opt.threshold and c.score > opt.margin * top.score]
-        if close:
-            confident = False
-            note = (f"cannot tell {top.name} from {', '.join(close)} (held-out scores "
-                    f"{', '.join(f'{c.score:.2f}' for c in results[:1 + len(close)])})")
-        elif top.caveat and top.score < 2 * opt.threshold:
-            confident = False
-            note = f"{top.name} barely earns its place: {top.caveat}"
-    else:
-        note = f"no extension earns its place (best {top.name} scores {top.score:.2f} <= {opt.threshold:g})"
-        weak = [c for c in results if opt.threshold / 3 < c.score <= opt.threshold]
-        if weak:
-            note += "; weak evidence for " + ", ".join(f"{c.name} ({c.score:.2f})" for c in weak)
-        hard = [c for c in results if c.caveat and c not in weak]
-        if hard:
-            note += "; cannot be excluded: " + "; ".join(f"{c.name} ({c.caveat})" for c in hard)
+    def pair(first, second):
+        # both extensions at once, each at its own best value, scored against the first alone
+        (c1, v1, f1), (c2, v2, _) = fits[first], fits[second]
+        spec = merge_specs(c1.spec(v1), c2.spec(v2))
+        if spec is None:
+            return None
+        try:
+            f = fit_blocks(build_blocks(sig, cfg, spec, theta0), split, cfg.h, cache)
+        except ValueError:
+            return None
+        tr1, te1 = _mse_split(f1, split)
+        tr, te = _mse_split(f, split)
+        ok = _log_ratio(tr1, tr) > 0 and c2.admissible(f.theta)
+        eff = {**c1.effects(v1, f.theta), **c2.effects(v2, f.theta)}
+        return (_log_ratio(te1, te) - opt.penalty * c2.n_extra if ok else 0.0), f, eff
 
+    verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair)
     return AuditResult(
-        cause=cause, confident=confident, note=note, candidates=results, params_nominal=p_nom,
+        cause=verdict.cause, causes=verdict.causes, confident=verdict.confident, note=verdict.note,
+        words=verdict.words, structure=verdict.structure, obeys=verdict.obeys, candidates=results, params_nominal=p_nom,
         freerun_nominal=fr_nom or {}, residual_var_nominal=nom_te, split=split,
         t=np.arange(sig.n) * cfg.h, measured=measured, simulated_nominal=sim_nom,
         residuals_nominal={g: (nominal.blocks[g].rows, nominal.residuals[g]) for g in BLOCKS})

@@ -136,16 +136,20 @@ class StribeckFriction(Candidate):
     v_s: float = 0.01  # [m/s] default for a fit without a searched value
 
     def grid(self, sig):
-        return [0.005, 0.007, 0.01, 0.014, 0.02]
+        # None: the breakaway level on the rest rows alone (a hump so large that the piston
+        # sticks through most reversals leaves too few sliding rows near zero velocity)
+        return [None, 0.005, 0.007, 0.01, 0.014, 0.02]
 
     def spec(self, v_s):
+        if v_s is None:
+            return Spec(static_search=True)
         return Spec(force_cols={"F_s": _hump(v_s)}, static_cols=("F_s",))
 
     def admissible(self, theta):
         return theta["force"]["F_s"] > 0.0
 
     def effects(self, v_s, theta):
-        return {"stribeck_F_s": max(theta["force"]["F_s"], 0.0), "stribeck_v_s": v_s}
+        return {"stribeck_F_s": max(theta["force"]["F_s"], 0.0), "stribeck_v_s": v_s or self.v_s}
 
     def free_run_variables(self, params: dict, effect: dict):
         """The friction for an output-error refinement on the training part: f_c, B + f_v,

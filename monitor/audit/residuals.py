@@ -46,7 +46,7 @@ from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, signals  # noqa
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
-           "nominal_params", "BLOCKS", "orifice_factors"]
+           "nominal_params", "BLOCKS", "orifice_factors", "merge_specs"]
 
 BLOCKS = ("force", "rest", "chamber", "valve")
 VAR_FLOOR = {"force": 25.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
@@ -54,7 +54,7 @@ VAR_FLOOR = {"force": 25.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
 1e-7 m^3/s, 0.2 um rms), well below realistic sensor noise: on near noise-free records a
 scale-free ratio of tiny model-approximation errors would otherwise look like evidence."""
 REST_V_RESOLUTION = 2e-3  # [m/s] rest rows need a velocity resolution (3 noise sigmas) finer than this
-STATIC_GRID = np.linspace(0.0, 600.0, 61)  # [N] static friction above Coulomb searched by ``static_search``
+STATIC_GRID = np.linspace(0.0, 1200.0, 121)  # [N] static friction above Coulomb searched by ``static_search``
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
 
@@ -108,6 +108,18 @@ class Spec:
     """Fit a static friction level above Coulomb, F_s [N], to the rest rows (breakaway)."""
     static_cols: tuple = ()
     """Force columns (of ``force_cols``) that are friction too: at rest they add to f_c's static level."""
+
+
+def merge_specs(a: Spec, b: Spec) -> Spec | None:
+    """Both extensions at once, or None when they change the same part of a block (two flow
+    laws, two spool gates, two re-alignments of x1) and so cannot be combined."""
+    if (a.flow and b.flow) or (a.valve_gate and b.valve_gate) or (a.x1_shift and b.x1_shift) \
+            or (a.static_search and b.static_search):
+        return None
+    return Spec(x1_shift=a.x1_shift or b.x1_shift, du_shift=a.du_shift or b.du_shift, flow=a.flow or b.flow,
+                valve_gate=a.valve_gate or b.valve_gate, force_cols={**a.force_cols, **b.force_cols},
+                chamber_cols={**a.chamber_cols, **b.chamber_cols}, static_search=a.static_search or b.static_search,
+                static_cols=a.static_cols + b.static_cols)
 
 
 @dataclass(frozen=True)

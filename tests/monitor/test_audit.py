@@ -181,7 +181,8 @@ def test_cli_exits_1_on_a_record_that_does_not_obey_the_model(tmp_path, capsys):
     write_csv(path, SimpleNamespace(t=run.t, samples=run.samples * np.array([1, 1, 1e-5, 1e-5, 1])))  # bar
     assert main(["audit", str(path), "--json"]) == 1
     doc = json.loads(capsys.readouterr().out)  # still reported in full
-    assert doc["cause"] == "none" and "does not obey the model" in doc["note"]
+    assert doc["cause"] == "unexplained" and "does not obey the model" in doc["note"]
+    assert not doc["obeys_model"] and "chamber equation" in doc["note"]
 
 
 def test_cli_prints_the_result_before_a_report_that_fails(tmp_path, capsys, monkeypatch):
@@ -418,7 +419,7 @@ def test_a_record_in_wrong_units_names_no_cause(what, scale):
     # not obey the model: the audit says so and names no cause
     _, run = hidden_case(3, "load_offset")
     res = audit(run.samples * np.array(scale), run.config)
-    assert res.cause == "none" and not res.confident, (what, res.cause, res.note)
+    assert res.cause == "unexplained" and not res.confident and not res.obeys, (what, res.cause, res.note)
     assert "does not obey the model" in res.note, what
     # the same record in SI still names its effect
     assert audit(run.samples, run.config).cause == "load_offset"
@@ -443,3 +444,35 @@ def test_audit_reports_its_stages_and_a_long_audit_says_so_on_stderr():
     # quiet for the first 5 s, then at most every 5 s (not at 8 s), and nothing once done
     assert out.getvalue().splitlines() == [
         f"hydromon audit: 1 of 3 candidate extensions tried (last {names[0]}), 6 s so far"]
+
+
+# --- effects that spoil the nominal fit, two effects, effects outside the library --------
+
+from hydromon.tools.audit_sweep import CLAIMS, _record  # noqa: E402
+
+
+@pytest.mark.parametrize("name", EFFECT_NAMES)
+def test_an_effect_at_its_largest_magnitude_is_named(name):
+    """The sweep's largest magnitude of each effect (large enough to make some nominal estimates
+    impossible for several of them) is still named, one record each."""
+    i = EFFECT_NAMES.index(name)
+    s, cfg = _record("one", {name: CLAIMS[name][2]}, ("paper-id", "paper-var", "steps", "multisine")[i % 4],
+                     0.1 + 0.2 * (i % 5), "realistic", 40 + i)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == name, (res.cause, res.note)
+    assert name.split("_")[-1] in res.words or name == "load_offset" and "force" in res.words, res.words
+
+
+def test_two_effects_at_once_are_both_named():
+    s, cfg = _record("pair", {"entrained_air": 0.04, "load_offset": 800.0}, "steps", 0.3, "realistic", 6)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert set(res.causes) == {"entrained_air", "load_offset"}, (res.causes, res.note)
+    assert abs(res.best.effect["load_offset"] - 800.0) < 200.0 or "+" in res.words
+
+
+def test_an_effect_outside_the_library_is_unexplained_and_located():
+    # a PI position loop the rig constants do not describe: the valve equation's drive is wrong
+    s, cfg = _record("outside", {"pi_loop": 1}, "multisine", 0.5, "realistic", 11)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "unexplained" and not res.causes and res.obeys, (res.cause, res.note)
+    assert "the valve equation leaves" in res.note, res.note

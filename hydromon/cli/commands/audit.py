@@ -198,9 +198,7 @@ def _report(args, result, directory, rig=None) -> None:
 
 
 def _exit(result) -> int:
-    """1 for a record that does not obey the model (wrong units, signs, zeros or rig constants):
-    it is audited and reported, but its cause "none" does not mean "the model is right", and a
-    script must not read it as a pass (hydromon.cli.exits)."""
-    from monitor.audit.audit import impossible_params
-
-    return 1 if impossible_params(result.params_nominal) else 0
+    """1 for a record that does not obey the model (wrong units, signs, zeros or rig constants:
+    the nominal fit is impossible and no candidate restores it): it is audited and reported,
+    but its cause "unexplained" must not be read as a pass by a script (hydromon.cli.exits)."""
+    return 0 if result.obeys else 1

@@ -1,0 +1,203 @@
+"""The audit's sweep: every effect on every input profile, health band and noise level.
+
+``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--jobs N] [--quick]`` prints the
+tables of ``docs/audit.md``. Every record is 20 s at 100 Hz from ``plant_sim``; its seed is
+``BASE[seeds] + its index`` in the fixed list below (the ``tune`` seeds were used to set the
+audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen):
+
+* one effect: each of the seven effects on each of the four profiles (the paper's sine
+  ``paper-id``, its variable-condition input ``paper-var``, ``steps``, ``multisine``) at
+  noise ``none`` and ``realistic``, at the claimed detection limit (``CLAIMS``), four times it,
+  and a magnitude large enough to spoil the nominal fit (``LARGE``); the health band (severity
+  0.1, 0.3, 0.5, 0.7, 0.9) cycles with the record's index;
+* clean: each profile x band x noise ``none``, ``realistic``, ``stress``;
+* two effects at once (``PAIRS``), realistic noise, each profile;
+* an effect outside the library, realistic noise, each profile: a PI position loop the rig
+  constants do not describe (the valve equation fails), and a 3 % gain error of the cap-side
+  pressure sensor (the chamber and force equations fail). The right answer is ``unexplained``.
+
+A record counts as right when the audit names exactly its effect ("none" for clean records;
+both effects, in any order, for a pair). The last line times one full audit of a 60 s record.
+"""
+
+from __future__ import annotations
+
+from hydromon.tools import jitcache
+
+jitcache.configure()  # before any kernel is imported
+
+import argparse
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+DURATION = 20.0  # [s]
+PROFILES = ("paper-id", "paper-var", "steps", "multisine")
+BANDS = (0.1, 0.3, 0.5, 0.7, 0.9)  # health severity in the middle of each of the five bands
+NOISES = ("none", "realistic")
+BASE = {"tune": 100_000, "heldout": 900_000}
+
+# effect -> (unit shown, {noise: claimed limit}, large magnitude, Effects kwargs from a magnitude)
+# valve_saturation's magnitude is the share of samples its stop cuts (x_max is that quantile of
+# |x5| of the same record without a stop); a sensor delay's is whole samples.
+CLAIMS = {
+    "stribeck_friction": ("N above Coulomb (v_s = 10 mm/s)", {"none": 30.0, "realistic": 80.0}, 600.0,
+                          lambda v: dict(stribeck_F_s=v, stribeck_v_s=0.01)),
+    "valve_saturation": ("share of samples cut", {"none": 0.01, "realistic": 0.01}, 0.3,
+                         lambda v: dict(x_max=v)),
+    "valve_dead_band": ("um", {"none": 2.5, "realistic": 5.0}, 120.0, lambda v: dict(dead_band=v * 1e-6)),
+    "supply_pressure_sag": ("Pa/(m^3/s)", {"none": 5e8, "realistic": 1e9}, 3e10, lambda v: dict(supply_sag=v)),
+    "entrained_air": ("volume fraction", {"none": 0.005, "realistic": 0.01}, 0.3, lambda v: dict(air_fraction=v)),
+    "sensor_delay": ("samples (recording only)", {"none": 1, "realistic": 1}, 10,
+                     lambda v: dict(sensor_delay=int(v), sensor_delay_in_loop=False)),
+    "load_offset": ("N", {"none": 100.0, "realistic": 200.0}, 4000.0, lambda v: dict(load_offset=v)),
+}
+STEPS = ("limit", "4x limit", "large")
+PAIRS = (("entrained_air", 0.04, "load_offset", 800.0), ("valve_dead_band", 20.0, "load_offset", -800.0),
+         ("sensor_delay", 3, "entrained_air", 0.04))
+OUTSIDE = ("pi_loop", "pressure_gain")
+
+
+def _cases():
+    """The fixed list of records: (kind, effects {name: magnitude}, profile, severity, noise, step)."""
+    out = []
+    for name in CLAIMS:
+        for profile in PROFILES:
+            for noise in NOISES:
+                lim = CLAIMS[name][1][noise]
+                for step, v in zip(STEPS, (lim, 4 * lim, CLAIMS[name][2])):
+                    out.append(("one", {name: v}, profile, BANDS[len(out) % 5], noise, step))
+    for profile in PROFILES:
+        for sev in BANDS:
+            for noise in NOISES + ("stress",):
+                out.append(("clean", {}, profile, sev, noise, ""))
+    for a, va, b, vb in PAIRS:
+        for profile in PROFILES:
+            out.append(("pair", {a: va, b: vb}, profile, BANDS[len(out) % 5], "realistic", ""))
+    for what in OUTSIDE:
+        for profile in PROFILES:
+            out.append(("outside", {what: 1}, profile, BANDS[len(out) % 5], "realistic", ""))
+    return out
+
+
+def _record(kind, effects, profile, severity, noise, seed, duration=DURATION):
+    from plant_sim.degradation import degrade
+    from plant_sim.noise import noise_model
+    from plant_sim.params import Controller, Effects
+    from plant_sim.profiles import parse_profile
+    from plant_sim.simulate import simulate
+
+    prof, params = parse_profile(profile), degrade(severity)
+    kw, ctrl = {}, Controller()
+    for name, v in effects.items():
+        if name == "valve_saturation":
+            free = simulate(prof, duration, params=params)
+            kw["x_max"] = float(np.quantile(np.abs(free.states[:, 4]), 1.0 - v))
+        elif name == "pi_loop":
+            ctrl = Controller(K_i=2.0)
+        elif name != "pressure_gain":
+            kw.update(CLAIMS[name][3](v))
+    run = simulate(prof, duration, params=params, effects=Effects(**kw), noise=noise_model(noise), seed=seed,
+                   controller=ctrl)
+    s = run.samples.copy()
+    if "pressure_gain" in effects:
+        s[:, 2] *= 1.03  # the cap-side pressure sensor reads 3 % high
+    return s, run.config
+
+
+def _audit_one(args):
+    from monitor.audit import AuditOptions, audit
+
+    i, case, seed = args
+    kind, effects, profile, severity, noise, step = case
+    s, cfg = _record(kind, effects, profile, severity, noise, seed)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    named = sorted(res.causes) if res.causes else [res.cause]
+    if kind == "clean":
+        truth = ["none"]
+    elif kind == "outside":
+        truth = ["unexplained"]
+    else:
+        truth = sorted(effects)
+    return i, named, truth, res.note
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", choices=tuple(BASE), default="heldout")
+    ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    ap.add_argument("--quick", action="store_true", help="every 7th record only (a smoke run)")
+    ap.add_argument("--verbose", action="store_true", help="print every record as it is audited")
+    args = ap.parse_args(argv)
+    cases = _cases()
+    todo = [(i, c, BASE[args.seeds] + i) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
+    t0 = time.perf_counter()
+    results = {}
+    pool = ProcessPoolExecutor(args.jobs) if args.jobs > 1 else None
+    it = pool.map(_audit_one, todo) if pool else map(_audit_one, todo)
+    for i, named, truth, note in it:
+        results[i] = (named, truth, note)
+        if args.verbose:
+            kind, effects, profile, severity, noise, step = cases[i]
+            mark = "ok " if named == truth else "BAD"
+            print(f"{mark} {i:3d} {kind:7s} {effects} {profile} sev {severity} {noise} {step}: {named}"
+                  + ("" if named == truth else f"  ({note[:160]})"), flush=True)
+    wall = time.perf_counter() - t0
+    _print_tables(cases, results, args.seeds, wall)
+    secs, cause = _time_60s()
+    print(f"\nOne full audit (free run on, after a warm-up audit) of a 60 s paper-var record, realistic noise, "
+          f"load offset 1000 N: {secs:.1f} s wall (cause: {cause}).")
+
+
+def _print_tables(cases, results, seeds, wall):
+    right = lambda i: results[i][0] == results[i][1]  # noqa: E731
+    print(f"Audit sweep, seeds '{seeds}' (base {BASE[seeds]}), {len(results)} records of {DURATION:g} s, "
+          f"{wall:.0f} s wall.\n")
+    print("One effect, named right per profile (of the two noise levels' records at that step):\n")
+    print("| effect | unit | claimed limit none / realistic | step | " + " | ".join(PROFILES) + " | all |")
+    print("|---|---|---|---|" + "---|" * (len(PROFILES) + 1))
+    for name, (unit, lim, large, _) in CLAIMS.items():
+        for step in STEPS:
+            cells, tot, n = [], 0, 0
+            for p in PROFILES:
+                idx = [i for i in results if cases[i][0] == "one" and name in cases[i][1] and cases[i][2] == p
+                       and cases[i][5] == step]
+                k = sum(right(i) for i in idx)
+                cells.append(f"{k}/{len(idx)}" if idx else "-")
+                tot, n = tot + k, n + len(idx)
+            print(f"| {name} | {unit} | {lim['none']:g} / {lim['realistic']:g} | {step} | " + " | ".join(cells)
+                  + f" | {tot}/{n} |")
+    for kind, label in (("one", "one effect, all"), ("clean", "clean (named 'none')"),
+                        ("pair", "two effects (both named)"), ("outside", "outside the library ('unexplained')")):
+        idx = [i for i in results if cases[i][0] == kind]
+        if not idx:
+            continue
+        by_noise = {}
+        for i in idx:
+            by_noise.setdefault(cases[i][4], []).append(right(i))
+        parts = ", ".join(f"{nz} {sum(v)}/{len(v)}" for nz, v in by_noise.items())
+        print(f"\n{label}: {sum(right(i) for i in idx)}/{len(idx)} right ({parts})")
+    clean_named = [i for i in results if cases[i][0] == "clean" and results[i][0] != ["none"]]
+    print(f"clean records named as an effect or unexplained: {len(clean_named)}")
+    wrong = [i for i in sorted(results) if not right(i)]
+    if wrong:
+        print("\nWrong answers (index: record -> named):")
+        for i in wrong:
+            kind, effects, profile, severity, noise, step = cases[i]
+            print(f"- {i}: {kind} {effects} {profile} severity {severity} {noise} {step} -> {', '.join(results[i][0])}")
+
+
+def _time_60s():
+    from monitor.audit import AuditOptions, audit
+
+    warm, cfg = _record("one", {"load_offset": 1000.0}, "paper-var", 0.3, "realistic", 2, duration=10.0)
+    audit(warm, cfg, AuditOptions())
+    s, cfg = _record("one", {"load_offset": 1000.0}, "paper-var", 0.3, "realistic", 3, duration=60.0)
+    t0 = time.perf_counter()
+    res = audit(s, cfg, AuditOptions())
+    return time.perf_counter() - t0, res.cause
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,139 @@
+"""The audit's decision: which cause(s) a finished ranking names, or why none, in words.
+
+Rules (scores as in ``monitor.audit.audit``, threshold ``opt.threshold``):
+
+1. A candidate **earns its place** when its held-out score exceeds the threshold (twice the
+   threshold for a candidate with a caveat: Stribeck friction). When the
+   nominal identification is impossible (a non-positive 1/beta_e, C_d W/sqrt(rho) or K_sv: the
+   paper's equations cannot hold), a candidate must also restore a plausible identification and
+   simulate the held-out part better than the nominal model (free-run gain > 0): equation error
+   alone proves nothing against an impossible reference.
+2. The best candidate that earns its place is the cause. A **second** cause is named when it
+   earns its place alone too and the two extensions fitted together beat the first alone by
+   more than the threshold on the held-out part (and on the training part); otherwise a close runner-up makes the answer not
+   confident, as before.
+3. ``unexplained`` when nothing is named but the final model's held-out residual keeps
+   structure: in some equation, more variance beyond the sensor noise than ``STRUCTURE`` of
+   that equation's left side (calibrated on clean records: see docs/audit.md). It then says in
+   which equation and what the residual follows (velocity, load pressure, spool position).
+   When the nominal fit is impossible and no candidate restores it, the record **does not obey
+   the model**, with the equation whose parameter is impossible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .verdict import EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape
+
+__all__ = ["Verdict", "decide", "STRUCTURE"]
+
+STRUCTURE = {"force": 0.3, "chamber": 0.3, "valve": 0.1}
+"""Share of an equation's held-out left-side variance left in its residual beyond noise [-]
+above which the residual is structure, not noise (rest rows are a dead zone: not used)."""
+
+
+@dataclass(frozen=True)
+class Verdict:
+    cause: str
+    causes: tuple
+    confident: bool
+    note: str
+    words: str
+    structure: dict = field(default_factory=dict)
+    obeys: bool = True
+
+
+def _structure(fit, sig, split) -> dict:
+    """Per block: residual share beyond noise of the held-out left side, and what it follows."""
+    out = {}
+    probes_of = {"force": ("velocity", "load pressure"), "chamber": ("velocity", "load pressure", "spool position"),
+                 "valve": ("spool position", "velocity")}
+    signal = {"velocity": sig.vl, "load pressure": sig.x3l - sig.x4l, "spool position": sig.x5l}
+    for g in STRUCTURE:
+        b = fit.blocks[g]
+        te = b.rows >= split
+        if te.sum() < 10:
+            continue
+        y = b.y[te]
+        var_y = float(np.var(y))
+        share = fit.mse(g, te) / var_y if var_y > 0 else 0.0
+        like, r = residual_shape(fit.residuals[g][te], {k: signal[k][b.rows[te]] for k in probes_of[g]})
+        out[g] = {"share": float(share), "like": like, "r": float(r)}
+    return out
+
+
+def _structure_words(struct: dict) -> str:
+    bad = [(g, s) for g, s in struct.items() if s["share"] > STRUCTURE[g]]
+    return "; ".join(f"the {g} equation leaves {100 * s['share']:.0f} % of its variance unexplained, "
+                     f"correlated with {s['like']} (r = {s['r']:+.2f})" for g, s in bad)
+
+
+def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair) -> Verdict:
+    """The verdict from the ranked ``results`` (best score first); ``pair(a, b)`` fits two named
+    candidates together and returns (score against ``a`` alone, fit, effects) or None."""
+    thr = opt.threshold
+    # a candidate with a caveat (Stribeck friction, partly collinear with Coulomb + viscous
+    # friction) must score twice the threshold: clean steps and multisine records at fault-grade
+    # health gave it scores just above the threshold
+    need = {c.name: (2 * thr if c.caveat else thr) for c in results}
+    if impossible:
+        earn = [c for c in results if c.score > need[c.name] and not impossible_params(c.params) and c.gain > 0]
+    else:
+        earn = [c for c in results if c.score > need[c.name]]
+    if not earn:
+        struct = _structure(nominal, sig, split)
+        if impossible:
+            why = "; ".join(f"the {EQUATION_OF[k]} equation's {READABLE[k]} = {p_nom[k]:.3g} (must be positive)"
+                            for k in impossible)
+            note = (f"the record does not obey the model: {why}; no candidate restores a plausible fit that "
+                    "simulates the held-out part better. Check the units (SI: m, Pa, V), the signs and zeros of "
+                    "x1, x3, x4, x5 and ug, and the rig constants")
+            return Verdict("unexplained", (), False, note, note, struct, obeys=False)
+        shape = _structure_words(struct)
+        if shape:
+            note = (f"no candidate of the library explains the residual: {shape}"
+                    f" (best candidate {results[0].name} scores {results[0].score:.2f} <= {thr:g})")
+            return Verdict("unexplained", (), True, note, note, struct)
+        note = f"no extension earns its place (best {results[0].name} scores {results[0].score:.2f} <= {thr:g})"
+        weak = [c for c in results if thr / 3 < c.score <= need[c.name]]
+        if weak:
+            note += "; weak evidence for " + ", ".join(f"{c.name} ({c.score:.2f})" for c in weak)
+        hard = [c for c in results if c.caveat and c not in weak]
+        if hard:
+            note += "; cannot be excluded: " + "; ".join(f"{c.name} ({c.caveat})" for c in hard)
+        return Verdict("none", (), True, note, "the record matches the nominal model: no named effect", struct)
+
+    top = earn[0]
+    causes, confident, note = [top.name], True, ""
+    final, effect = None, dict(top.effect)
+    # a second effect: the two fitted together must beat the first alone on held-out data
+    best2 = None
+    for c in earn:  # the second must earn its place alone too: a large first effect leaves
+        if c is top:  # residual structure that any extension soaks up in part
+            continue
+        got = pair(top.name, c.name)
+        if got is not None and got[0] > thr and (best2 is None or got[0] > best2[0]):
+            best2 = (got[0], c, got[1], got[2])
+    if best2 is not None:
+        causes.append(best2[1].name)
+        final, effect = best2[2], best2[3]
+    close = [c.name for c in earn[1:] if c.name not in causes and c.score > opt.margin * top.score]
+    if close:
+        confident = False
+        note = (f"cannot tell {top.name} from {', '.join(close)} (held-out scores "
+                f"{', '.join(f'{c.score:.2f}' for c in earn[:1 + len(close)])})")
+    if impossible:
+        note = (note + "; " if note else "") + (
+            "the nominal estimates are impossible (" + ", ".join(f"{READABLE[k]} = {p_nom[k]:.3g}" for k in impossible)
+            + f"); {top.name} restores a plausible fit and simulates the held-out part better")
+    struct = _structure(final, sig, split) if final is not None else {}
+    said = [cause_words(n, effect) for n in causes]
+    shift = param_shift_words(p_nom, top.params)
+    gain = "" if not np.isfinite(top.gain) else f"; the free run's held-out error falls {100 * top.gain:.0f} %"
+    words = ("; and ".join(said) + (f". Without it the nominal fit reads {shift}" if shift else "")
+             + f". Held-out score {top.score:.2f}{gain}; {'confident' if confident else 'not confident: ' + note}.")
+    return Verdict(top.name, tuple(causes), confident, note, words, struct)
+
