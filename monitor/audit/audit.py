@@ -183,6 +183,8 @@ class AuditResult:
     structure: dict = field(default_factory=dict)
     obeys: bool = True
     """False when the nominal fit is impossible and no candidate restores it."""
+    effect: dict = field(default_factory=dict)
+    """Every named cause's fitted extension, fitted together when two are named (``Effects`` fields, SI)."""
 
     @property
     def best(self) -> CandidateResult | None:
@@ -399,7 +401,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair)
     return AuditResult(
         cause=verdict.cause, causes=verdict.causes, confident=verdict.confident, note=verdict.note,
-        words=verdict.words, structure=verdict.structure, obeys=verdict.obeys, candidates=results, params_nominal=p_nom,
+        words=verdict.words, structure=verdict.structure, obeys=verdict.obeys, effect=verdict.effect,
+        candidates=results, params_nominal=p_nom,
         freerun_nominal=fr_nom or {}, residual_var_nominal=nom_te, split=split,
         t=np.arange(sig.n) * cfg.h, measured=measured, simulated_nominal=sim_nom,
         residuals_nominal={g: (nominal.blocks[g].rows, nominal.residuals[g]) for g in BLOCKS})

@@ -444,35 +444,3 @@ def test_audit_reports_its_stages_and_a_long_audit_says_so_on_stderr():
     # quiet for the first 5 s, then at most every 5 s (not at 8 s), and nothing once done
     assert out.getvalue().splitlines() == [
         f"hydromon audit: 1 of 3 candidate extensions tried (last {names[0]}), 6 s so far"]
-
-
-# --- effects that spoil the nominal fit, two effects, effects outside the library --------
-
-from hydromon.tools.audit_sweep import CLAIMS, _record  # noqa: E402
-
-
-@pytest.mark.parametrize("name", EFFECT_NAMES)
-def test_an_effect_at_its_largest_magnitude_is_named(name):
-    """The sweep's largest magnitude of each effect (large enough to make some nominal estimates
-    impossible for several of them) is still named, one record each."""
-    i = EFFECT_NAMES.index(name)
-    s, cfg = _record("one", {name: CLAIMS[name][2]}, ("paper-id", "paper-var", "steps", "multisine")[i % 4],
-                     0.1 + 0.2 * (i % 5), "realistic", 40 + i)
-    res = audit(s, cfg, AuditOptions(free_run=False))
-    assert res.cause == name, (res.cause, res.note)
-    assert name.split("_")[-1] in res.words or name == "load_offset" and "force" in res.words, res.words
-
-
-def test_two_effects_at_once_are_both_named():
-    s, cfg = _record("pair", {"entrained_air": 0.04, "load_offset": 800.0}, "steps", 0.3, "realistic", 6)
-    res = audit(s, cfg, AuditOptions(free_run=False))
-    assert set(res.causes) == {"entrained_air", "load_offset"}, (res.causes, res.note)
-    assert abs(res.best.effect["load_offset"] - 800.0) < 200.0 or "+" in res.words
-
-
-def test_an_effect_outside_the_library_is_unexplained_and_located():
-    # a PI position loop the rig constants do not describe: the valve equation's drive is wrong
-    s, cfg = _record("outside", {"pi_loop": 1}, "multisine", 0.5, "realistic", 11)
-    res = audit(s, cfg, AuditOptions(free_run=False))
-    assert res.cause == "unexplained" and not res.causes and res.obeys, (res.cause, res.note)
-    assert "the valve equation leaves" in res.note, res.note

@@ -1,0 +1,49 @@
+"""The audit's verdict on hard records: an effect large enough to spoil the nominal fit, two
+effects at once, and an effect outside the library (``unexplained``). Records from the sweep's
+``hydromon.tools.audit_sweep._record``."""
+
+from __future__ import annotations
+
+import pytest
+
+from hydromon.tools.audit_sweep import CLAIMS, _record
+from monitor.audit import AuditOptions, audit
+from plant_sim.params import EFFECT_NAMES
+
+AIR_AT_FAULT = ("0.3 air fraction at fault-grade health (severity 0.9, paper-id) at realistic noise: the "
+                "chamber equation's regressor noise (its residual at the true parameters 2.2e-8 (m^3/s)^2 "
+                "against a left-side variance of 6.4e-11) hides the air; named sensor_delay; docs/limits.md")
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=AIR_AT_FAULT))
+                                  if n == "entrained_air" else n for n in EFFECT_NAMES])
+def test_an_effect_at_its_largest_magnitude_is_named(name):
+    """The sweep's largest magnitude of each effect (large enough to make some nominal estimates
+    impossible for several of them) is still named, one record each."""
+    i = EFFECT_NAMES.index(name)
+    s, cfg = _record("one", {name: CLAIMS[name][2]}, ("paper-id", "paper-var", "steps", "multisine")[i % 4],
+                     0.1 + 0.2 * (i % 5), "realistic", 40 + i)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == name, (res.cause, res.note)
+    assert SAID[name] in res.words, res.words
+
+
+# what the verdict's words say for each effect (monitor.audit.verdict.cause_words)
+SAID = {"stribeck_friction": "breakaway friction", "valve_saturation": "end stop", "valve_dead_band": "dead band",
+        "supply_pressure_sag": "supply pressure sags", "entrained_air": "entrained air",
+        "sensor_delay": "sample(s) late", "load_offset": "external force"}
+
+
+def test_two_effects_at_once_are_both_named():
+    s, cfg = _record("pair", {"entrained_air": 0.04, "load_offset": 800.0}, "steps", 0.3, "realistic", 6)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert set(res.causes) == {"entrained_air", "load_offset"}, (res.causes, res.note)
+    assert abs(res.effect["load_offset"] - 800.0) < 200.0 and res.effect["air_fraction"] > 0.02, res.effect
+
+
+def test_an_effect_outside_the_library_is_unexplained_and_located():
+    # a PI position loop the rig constants do not describe: the valve equation's drive is wrong
+    s, cfg = _record("outside", {"pi_loop": 1}, "multisine", 0.5, "realistic", 11)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "unexplained" and not res.causes and res.obeys, (res.cause, res.note)
+    assert "the valve equation leaves" in res.note, res.note
