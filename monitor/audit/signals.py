@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
-from scipy.signal import savgol_filter
+from numpy.lib.stride_tricks import sliding_window_view
 
 from ..fourth_difference import CHI2_1_MEDIAN, D4_VARIANCE_GAIN
 
@@ -28,12 +29,37 @@ MARGIN = 25  # [samples] rows dropped at both ends (filter edges and x1 re-align
 MIN_SAMPLES = 10 * MARGIN  # the shortest record the audit takes
 
 
+@lru_cache(maxsize=8)
+def _sg_weights(window: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weights of a cubic least-squares fit over ``window`` samples evaluated at the window's
+    centre, and at its first and last half (the record's edges, where the one fit over the
+    first or last window is used: scipy.signal.savgol_filter's mode "interp")."""
+    half = window // 2
+    t = np.arange(window, dtype=float) - half
+    v = np.vander(t, SG_ORDER + 1, increasing=True)
+    fit = np.linalg.pinv(v)  # window samples -> polynomial coefficients
+    return fit[0], v[:half] @ fit, v[half + 1:] @ fit
+
+
+def _savgol(x: np.ndarray, window: int) -> np.ndarray:
+    """Savitzky-Golay smoothing (cubic, odd ``window``) along axis 0, as
+    ``scipy.signal.savgol_filter(x, window, 3, mode="interp", axis=0)`` (importing scipy.signal
+    costs about a second, most of a short audit)."""
+    centre, head, tail = _sg_weights(window)
+    half, n = window // 2, len(x)
+    y = np.empty_like(x)
+    y[half:n - half] = sliding_window_view(x, window, axis=0) @ centre
+    y[:half] = np.tensordot(head, x[:window], axes=(1, 0))
+    y[n - half:] = np.tensordot(tail, x[n - window:], axes=(1, 0))
+    return y
+
+
 def _sg(x, deriv, h, window=SG_WINDOW):
     """Savitzky-Golay smoothing; derivatives are central differences of the smoothed signal,
     so that a derivative is the equation filter applied to the derivative, (L x)' = L[x'],
     at every frequency L passes (the SG derivative filter is not: it differs from
     j omega L(omega) where L attenuates, which misfits the equations on fast inputs)."""
-    y = savgol_filter(x, window, SG_ORDER, deriv=0, mode="interp", axis=0)
+    y = _savgol(np.asarray(x, dtype=float), window)
     if deriv == 0:
         return y
     if deriv == 1:

@@ -356,63 +356,6 @@ def test_every_named_effect_improves_the_free_run(sweep_40):
     assert all(g > 0 for g in gains), gains
 
 
-# --- numerics of the pieces -------------------------------------------------------------
-
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-from monitor.audit.candidates import _sagged_factor  # noqa: E402
-from monitor.audit.freerun import channel_scores, free_run  # noqa: E402
-from monitor.audit.residuals import orifice_factors, valve_response  # noqa: E402
-from plant_sim.model import orifice_z  # noqa: E402
-
-finite = st.floats(-1e7, 2e7, allow_nan=False)
-
-
-@settings(max_examples=60, deadline=None)
-@given(xv=st.floats(-1e-3, 1e-3, allow_nan=False), p1=finite, p2=finite)
-def test_orifice_factors_match_the_plant(xv, p1, p2):
-    z1, z2 = orifice_factors(np.array([xv]), np.array([p1]), np.array([p2]), 12e6)
-    assert (z1[0], z2[0]) == pytest.approx(orifice_z(xv, p1, p2, 12e6), rel=1e-12, abs=1e-9)
-
-
-@settings(max_examples=40, deadline=None)
-@given(a=st.floats(1e-9, 1e-6), dp=st.floats(0.0, 2e7), r=st.floats(0.0, 5e10))
-def test_sagged_flow_solves_its_equation(a, dp, r):
-    q = _sagged_factor(np.array([a]), np.array([dp]), r)[0]
-    assert q >= 0
-    assert q == pytest.approx(a * np.sqrt(2.0 * max(dp - r * q, 0.0)), rel=1e-6, abs=1e-15)
-
-
-@settings(max_examples=20, deadline=None)
-@given(omega=st.floats(20.0, 600.0), zeta=st.floats(0.15, 2.0), level=st.floats(-3.0, 3.0))
-def test_valve_response_has_unit_dc_gain(omega, zeta, level):
-    y = valve_response(omega, zeta, 0.01, np.full(3000, level))
-    assert y[-1] == pytest.approx(level, rel=1e-6, abs=1e-9)
-
-
-def test_valve_response_matches_the_plant_valve():
-    """The FOH valve model driven by the recorded du reproduces the simulated spool."""
-    run = simulate(parse_profile("chirp"), 10.0, params=degrade(0.3))
-    c = run.config
-    du = c.K_p * (run.ug - c.K_f * run.states[:, 0])
-    p = run.params
-    y = p.K_sv * valve_response(p.omega_sv, p.zeta_sv, c.h, du)
-    x5 = run.states[:, 4]
-    assert np.max(np.abs(y - x5)[50:]) < 0.01 * np.max(np.abs(x5))
-
-
-def test_free_run_with_true_parameters_reproduces_the_record():
-    """The parameter mapping (B = B_fv with f_v = 0, theta -> W, ...) is exact; a smooth
-    command keeps the free run's linear interpolation of the sampled ug out of the comparison."""
-    run = simulate(parse_profile("paper-id"), 10.0, params=degrade(0.5),
-                   effects=Effects(load_offset=500.0, dead_band=2e-5))
-    fr = free_run(run.samples, run.config, run.params.identified(), Effects(load_offset=500.0, dead_band=2e-5))
-    scores = channel_scores(run.measured, fr.measured, slice(0, len(run.t)))
-    assert not fr.diverged and fr.clamped == ()
-    assert all(s["nrmse"] < 2e-3 for s in scores.values()), scores
-
-
 @pytest.mark.parametrize("what, scale", [("x1 in mm", (1, 1e3, 1, 1, 1)), ("pressures in bar", (1, 1, 1e-5, 1e-5, 1))])
 def test_a_record_in_wrong_units_names_no_cause(what, scale):
     # x1 in mm fits "sensor_delay" best and pressures in bar "load_offset", but such a record does

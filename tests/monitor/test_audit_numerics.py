@@ -1,0 +1,89 @@
+"""Numerics of the audit's pieces: orifice factors, the sagged supply flow, the valve filter
+and the free run, against the plant and scipy (hypothesis properties where they are numerics)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.signal import cont2discrete, lfilter, savgol_filter
+
+from monitor.audit.candidates import _sagged_factor
+from monitor.audit.freerun import channel_scores, free_run
+from monitor.audit.residuals import orifice_factors, valve_response
+from monitor.audit.signals import _savgol
+from monitor.audit.valve_fit import _filter2, _valve_filter
+from plant_sim.degradation import degrade
+from plant_sim.model import orifice_z
+from plant_sim.params import Effects
+from plant_sim.profiles import parse_profile
+from plant_sim.simulate import simulate
+
+finite = st.floats(-1e7, 2e7, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(xv=st.floats(-1e-3, 1e-3, allow_nan=False), p1=finite, p2=finite)
+def test_orifice_factors_match_the_plant(xv, p1, p2):
+    z1, z2 = orifice_factors(np.array([xv]), np.array([p1]), np.array([p2]), 12e6)
+    assert (z1[0], z2[0]) == pytest.approx(orifice_z(xv, p1, p2, 12e6), rel=1e-12, abs=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(a=st.floats(1e-9, 1e-6), dp=st.floats(0.0, 2e7), r=st.floats(0.0, 5e10))
+def test_sagged_flow_solves_its_equation(a, dp, r):
+    q = _sagged_factor(np.array([a]), np.array([dp]), r)[0]
+    assert q >= 0
+    assert q == pytest.approx(a * np.sqrt(2.0 * max(dp - r * q, 0.0)), rel=1e-6, abs=1e-15)
+
+
+@settings(max_examples=20, deadline=None)
+@given(omega=st.floats(20.0, 600.0), zeta=st.floats(0.15, 2.0), level=st.floats(-3.0, 3.0))
+def test_valve_response_has_unit_dc_gain(omega, zeta, level):
+    y = valve_response(omega, zeta, 0.01, np.full(3000, level))
+    assert y[-1] == pytest.approx(level, rel=1e-6, abs=1e-9)
+
+
+def test_valve_response_matches_the_plant_valve():
+    """The FOH valve model driven by the recorded du reproduces the simulated spool."""
+    run = simulate(parse_profile("chirp"), 10.0, params=degrade(0.3))
+    c = run.config
+    du = c.K_p * (run.ug - c.K_f * run.states[:, 0])
+    p = run.params
+    y = p.K_sv * valve_response(p.omega_sv, p.zeta_sv, c.h, du)
+    x5 = run.states[:, 4]
+    assert np.max(np.abs(y - x5)[50:]) < 0.01 * np.max(np.abs(x5))
+
+
+def test_free_run_with_true_parameters_reproduces_the_record():
+    """The parameter mapping (B = B_fv with f_v = 0, theta -> W, ...) is exact; a smooth
+    command keeps the free run's linear interpolation of the sampled ug out of the comparison."""
+    run = simulate(parse_profile("paper-id"), 10.0, params=degrade(0.5),
+                   effects=Effects(load_offset=500.0, dead_band=2e-5))
+    fr = free_run(run.samples, run.config, run.params.identified(), Effects(load_offset=500.0, dead_band=2e-5))
+    scores = channel_scores(run.measured, fr.measured, slice(0, len(run.t)))
+    assert not fr.diverged and fr.clamped == ()
+    assert all(s["nrmse"] < 2e-3 for s in scores.values()), scores
+
+
+@settings(max_examples=40, deadline=None)
+@given(omega=st.floats(5.0, 2500.0), zeta=st.floats(0.05, 3.0), h=st.floats(1e-3, 2e-2))
+def test_valve_filter_is_scipys_first_order_hold(omega, zeta, h):
+    b, a, _ = cont2discrete(([omega * omega], [1.0, 2.0 * zeta * omega, omega * omega]), h, method="foh")
+    b2, a2 = _valve_filter.__wrapped__(omega, zeta, h)
+    np.testing.assert_allclose(a2, np.ravel(a), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b2, np.ravel(b), rtol=0, atol=1e-9 * np.max(np.abs(b)))
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(31, 400), window=st.sampled_from([11, 31]),
+       cols=st.sampled_from([0, 3]))
+def test_savgol_and_the_valve_filter_are_scipys(seed, n, window, cols):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, cols) if cols else n).cumsum(axis=0)
+    want = savgol_filter(x, window, 3, mode="interp", axis=0)
+    np.testing.assert_allclose(_savgol(x, window), want, rtol=0, atol=1e-9 * np.max(np.abs(x)))
+    b, a = _valve_filter(float(rng.uniform(20, 600)), float(rng.uniform(0.15, 1.5)), 0.01)
+    u = x if x.ndim == 1 else x[:, 0]
+    np.testing.assert_allclose(_filter2(b, a, u), lfilter(b, a, u), rtol=0, atol=1e-9 * np.max(np.abs(u)))
