@@ -30,11 +30,12 @@ def _num(x):
 
 def to_json(result) -> dict:
     """The ``audit --json`` document: cause, candidates, gain, params_nominal,
-    params_extended (the named cause's model, or the nominal one), plus confident/note."""
+    params_extended (the named cause's model, or the nominal one; with two causes, both
+    extensions as fitted together), plus confident/note."""
     best = result.best
     ext = dict(best.params) if best else dict(result.params_nominal)
     if best:
-        ext.update(best.effect)
+        ext.update(result.effect or best.effect)
     return _num({
         "cause": result.cause,
         "causes": list(result.causes),

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pytest
 
+from hydromon.report.audit import to_json
 from hydromon.tools.audit_sweep import CLAIMS, _record
 from monitor.audit import AuditOptions, audit
 from plant_sim.params import EFFECT_NAMES
@@ -39,6 +40,8 @@ def test_two_effects_at_once_are_both_named():
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert set(res.causes) == {"entrained_air", "load_offset"}, (res.causes, res.note)
     assert abs(res.effect["load_offset"] - 800.0) < 200.0 and res.effect["air_fraction"] > 0.02, res.effect
+    ext = to_json(res)["params_extended"]
+    assert ext["load_offset"] == res.effect["load_offset"] and ext["air_fraction"] == res.effect["air_fraction"]
 
 
 def test_an_effect_outside_the_library_is_unexplained_and_located():
