@@ -8,10 +8,12 @@ Rules (scores as in ``monitor.audit.audit``, threshold ``opt.threshold``):
    paper's equations cannot hold), a candidate must also restore a plausible identification and
    simulate the held-out part better than the nominal model (free-run gain > 0): equation error
    alone proves nothing against an impossible reference.
-2. The best candidate that earns its place is the cause. A **second** cause is named when it
-   earns its place alone too and the two extensions fitted together beat the first alone by
-   more than ``SECOND`` times its threshold on the held-out part (and on the training part); otherwise a close runner-up makes the answer not
-   confident, as before.
+2. The best candidate that earns its place is the cause. A **second** cause is named when the
+   two extensions fitted together beat the first alone by
+   more than ``SECOND`` times the second's threshold on the held-out part (and on the training
+   part); alone, the second need not score (the first distorts its fit). When the nominal fit
+   is impossible, the second must earn its place alone as the first did. A close runner-up
+   makes the answer not confident.
 3. ``unexplained`` when nothing is named but the final model's held-out residual keeps
    structure: in some equation, more variance beyond the sensor noise than ``STRUCTURE`` of
    that equation's left side (calibrated on clean records: see docs/audit.md). It then says in
@@ -121,8 +123,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair) -> V
     final, effect = None, dict(top.effect)
     # a second effect: the two fitted together must beat the first alone on held-out data
     best2 = None
-    for c in earn:  # the second must earn its place alone too: a large first effect leaves
-        if c is top:  # residual structure that any extension soaks up in part
+    for c in results:  # alone, a second effect can score nothing: the first distorts the fit
+        if c is top or (impossible and c not in earn):  # (a 3-sample delay hides 4 % air: 0.003 alone, 3.8 as a pair)
             continue
         got = pair(top.name, c.name)
         if got is not None and got[0] > SECOND * need[c.name] and (best2 is None or got[0] > best2[0]):

@@ -44,6 +44,15 @@ def test_two_effects_at_once_are_both_named():
     assert ext["load_offset"] == res.effect["load_offset"] and ext["air_fraction"] == res.effect["air_fraction"]
 
 
+def test_a_second_effect_hidden_by_the_first_is_named():
+    # alone, 4 % air scores nothing beside a 3-sample delay (the delay distorts its fit); fitted
+    # together with the delay it earns its place by far
+    s, cfg = _record("pair", {"sensor_delay": 3, "entrained_air": 0.04}, "paper-var", 0.5, "realistic", 100237)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.causes == ("sensor_delay", "entrained_air"), (res.causes, res.note)
+    assert res.effect["sensor_delay"] == 3 and res.effect["air_fraction"] > 0.02, res.effect
+
+
 def test_an_effect_outside_the_library_is_unexplained_and_located():
     # a PI position loop the rig constants do not describe: the valve equation's drive is wrong
     s, cfg = _record("outside", {"pi_loop": 1}, "multisine", 0.5, "realistic", 11)
