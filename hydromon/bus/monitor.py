@@ -211,6 +211,10 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         for key, payload in core.take_events():
             session.put(key, payload, encoding=JSON, congestion_control=zenoh.CongestionControl.BLOCK)
 
+    if group is not None:  # its role first: the probe waits up to a second, with no samples queueing meanwhile
+        failover = Failover(session, namespace, group, node_name, standby=standby)
+        log.warning("monitor %s: %s", node_name, failover.poll() or
+                    f"monitor {failover.holder()} publishes for these rigs: standing by (taking every sample)")
     rig_chunk = rig_pattern(rigs)
     sub_c = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/config", zenoh.handlers.FifoChannel(capacity))
     sub_s = session.declare_subscriber(f"{namespace}/rig/{rig_chunk}/sample", zenoh.handlers.FifoChannel(capacity))
@@ -221,10 +225,6 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         rescan_ranges()  # before the first sample: a rig is graded on its own ranges from its start
     # last: a peer that sees the token has seen the subscribers declared before it
     token = session.liveliness().declare_token(liveliness_key(node_name, namespace))
-    if group is not None:
-        failover = Failover(session, namespace, group, node_name, standby=standby)
-        log.warning("monitor %s: %s", node_name, failover.poll() or
-                    f"monitor {failover.holder()} publishes for these rigs: standing by (taking every sample)")
 
     # rigs that published their config before we came up: ask their nodes (the sim node
     # answers on <ns>/rig/*/config); replies are handled as config messages
