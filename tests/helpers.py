@@ -1,13 +1,19 @@
-"""Shared test helpers: polling for a condition, where a rig's health messages fall, a taken port."""
+"""Shared test helpers: polling for a condition, where a rig's health messages fall, a taken port, node
+processes."""
 
 from __future__ import annotations
 
+import os
+import signal
 import socket
+import subprocess
+import sys
 import time
 
 import numpy as np
 import orjson
 
+from hydromon.bus.session import on_a_free_port
 from monitor.evaluations import eval_phase
 
 
@@ -236,3 +242,70 @@ def working_point_sample(seq: int, ints: bool = False) -> bytes:
     ug = 2 if ints else 2.0 + 0.5 * ((seq * 7919) % 13) / 13
     return orjson.dumps({"seq": seq, "t": t, "ug": ug, "x1": 0.01 + 1e-4 * (seq % 17), "x3": 6e6 + 1e4 * (seq % 5),
                          "x4": 5e6 - 1e4 * (seq % 3), "x5": 1e-5 * (1 + seq % 4)})
+
+
+# -- node processes ---------------------------------------------------------------------------
+CLI = [sys.executable, "-m", "hydromon.cli"]
+
+
+class Procs:
+    """Node processes by name, each with its output in ``<dir>/<name>.log``; ``close`` ends
+    whatever still runs (SIGTERM, then SIGKILL), so nothing outlives the test."""
+
+    def __init__(self, directory):
+        self.dir = directory
+        self.procs: dict[str, subprocess.Popen] = {}
+        self._logs = []
+        self.finished: set[str] = set()  # names expected to have exited by themselves
+
+    def start(self, name: str, *args: str) -> subprocess.Popen:
+        log = open(self.dir / f"{name}.log", "wb")
+        self._logs.append(log)
+        p = subprocess.Popen(CLI + list(args), stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        self.procs[name] = p
+        return p
+
+    def start_listening(self, name: str, *args: str, ready: str, timeout_s: float = 60) -> str:
+        """Start a node with ``--listen tcp/127.0.0.1:PORT`` on a free port and wait for ``ready``
+        in its output; return the endpoint. If another process took the port before the node
+        bound it (it exits: "Address already in use"), start it again on another port."""
+        def start(ep):
+            self.start(name, *args, "--listen", ep)
+            wait_for(lambda: ready in self.log(name), timeout_s, f"the {name}", alive=self.check_alive)
+
+        return on_a_free_port(start)[1]
+
+    def log(self, name: str) -> str:
+        return (self.dir / f"{name}.log").read_text(errors="replace")
+
+    def check_alive(self) -> None:
+        for name, p in self.procs.items():
+            if name not in self.finished and p.poll() is not None:
+                raise AssertionError(f"{name} exited early with {p.returncode}:\n{self.log(name)[-3000:]}")
+
+    def wait(self, name: str, timeout_s: float) -> int:
+        self.finished.add(name)
+        try:
+            return self.procs[name].wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f"{name} still running after {timeout_s} s:\n{self.log(name)[-3000:]}") from None
+
+    def stop(self, name: str, sig=signal.SIGINT, timeout_s: float = 30) -> int:
+        """Ask a node to stop (it closes cleanly on SIGINT/SIGTERM) and return its exit code."""
+        self.finished.add(name)
+        self.procs[name].send_signal(sig)
+        return self.wait(name, timeout_s)
+
+    def close(self) -> None:
+        for p in reversed(list(self.procs.values())):
+            if p.poll() is None:
+                p.terminate()
+        for p in reversed(list(self.procs.values())):
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(10)
+        for log in self._logs:
+            log.close()

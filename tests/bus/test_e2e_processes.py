@@ -16,19 +16,15 @@ stopped in a ``finally``; every wait is bounded.
 from __future__ import annotations
 
 import io
-import os
-import signal
-import subprocess
-import sys
 import threading
 
 import orjson
 import pytest
 import zenoh
 
-from helpers import health_seqs, held_port, taken_first, wait_for, without_node  # noqa: F401
+from helpers import Procs, health_seqs, held_port, taken_first, wait_for, without_node
 from hydromon.bus.monitor import run_monitor
-from hydromon.bus.session import on_a_free_port, open_session
+from hydromon.bus.session import open_session
 from hydromon.contract import Health
 from hydromon.store.fleetfile import default_fleet, true_grade
 from hydromon.store.mcap_layout import MAGIC
@@ -36,73 +32,9 @@ from hydromon.store.mcap_read import read_recording
 from hydromon.store.mcap_recover import recover
 from hydromon.store.replay import replay_direct
 
-CLI = [sys.executable, "-m", "hydromon.cli"]
 SECONDS = 30
 RATE = 10
 N = SECONDS * 100  # samples per rig
-
-
-class Procs:
-    """Node processes by name, each with its output in ``<dir>/<name>.log``; ``close`` ends
-    whatever still runs (SIGTERM, then SIGKILL), so nothing outlives the test."""
-
-    def __init__(self, directory):
-        self.dir = directory
-        self.procs: dict[str, subprocess.Popen] = {}
-        self._logs = []
-        self.finished: set[str] = set()  # names expected to have exited by themselves
-
-    def start(self, name: str, *args: str) -> subprocess.Popen:
-        log = open(self.dir / f"{name}.log", "wb")
-        self._logs.append(log)
-        p = subprocess.Popen(CLI + list(args), stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
-        self.procs[name] = p
-        return p
-
-    def start_listening(self, name: str, *args: str, ready: str, timeout_s: float = 60) -> str:
-        """Start a node with ``--listen tcp/127.0.0.1:PORT`` on a free port and wait for ``ready``
-        in its output; return the endpoint. If another process took the port before the node
-        bound it (it exits: "Address already in use"), start it again on another port."""
-        def start(ep):
-            self.start(name, *args, "--listen", ep)
-            wait_for(lambda: ready in self.log(name), timeout_s, f"the {name}", alive=self.check_alive)
-
-        return on_a_free_port(start)[1]
-
-    def log(self, name: str) -> str:
-        return (self.dir / f"{name}.log").read_text(errors="replace")
-
-    def check_alive(self) -> None:
-        for name, p in self.procs.items():
-            if name not in self.finished and p.poll() is not None:
-                raise AssertionError(f"{name} exited early with {p.returncode}:\n{self.log(name)[-3000:]}")
-
-    def wait(self, name: str, timeout_s: float) -> int:
-        self.finished.add(name)
-        try:
-            return self.procs[name].wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            raise AssertionError(f"{name} still running after {timeout_s} s:\n{self.log(name)[-3000:]}") from None
-
-    def stop(self, name: str, sig=signal.SIGINT, timeout_s: float = 30) -> int:
-        """Ask a node to stop (it closes cleanly on SIGINT/SIGTERM) and return its exit code."""
-        self.finished.add(name)
-        self.procs[name].send_signal(sig)
-        return self.wait(name, timeout_s)
-
-    def close(self) -> None:
-        for p in reversed(list(self.procs.values())):
-            if p.poll() is None:
-                p.terminate()
-        for p in reversed(list(self.procs.values())):
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(10)
-        for log in self._logs:
-            log.close()
 
 
 def _messages_on_disk(path) -> int:

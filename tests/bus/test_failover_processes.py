@@ -13,11 +13,11 @@ import time
 import orjson
 import pytest
 import zenoh
+from test_e2e_processes import _warm_kernels
 
-from helpers import wait_for
+from helpers import Procs, wait_for
 from hydromon.bus.session import open_session
 from hydromon.store.fleetfile import default_fleet, true_grade
-from test_e2e_processes import Procs, _warm_kernels
 
 TRUTH = {r.id: true_grade(r) for r in default_fleet().rigs}
 

@@ -11,81 +11,29 @@ from __future__ import annotations
 import io
 import os
 import re
-import signal
-import subprocess
-import sys
 import tempfile
 from contextlib import contextmanager
 
 import orjson
 import pytest
 
+import helpers
 from helpers import wait_for
-from hydromon.bus.session import on_a_free_port
 
-CLI = [sys.executable, "-m", "hydromon.cli"]
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--no-first-run"]
 URL_RE = re.compile(r"hydromon dashboard: (http://127\.0\.0\.1:\d+/)")
 
 
-class Procs:
-    """Node processes by name, each with its output in ``<dir>/<name>.log``; ``close`` ends what
-    still runs (SIGTERM, then SIGKILL)."""
-
-    def __init__(self, directory):
-        self.dir = directory
-        self.procs: dict[str, subprocess.Popen] = {}
-        self.finished: set[str] = set()
-        self._logs = []
-
-    def start(self, name: str, *args: str) -> subprocess.Popen:
-        log = open(self.dir / f"{name}.log", "wb")
-        self._logs.append(log)
-        p = subprocess.Popen(CLI + list(args), stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
-        self.procs[name] = p
-        return p
-
-    def start_listening(self, name: str, *args: str, ready: str, timeout_s: float = 60) -> str:
-        def start(ep):
-            self.start(name, *args, "--listen", ep)
-            wait_for(lambda: ready in self.log(name), timeout_s, f"the {name}", alive=self.check_alive)
-
-        return on_a_free_port(start)[1]
+class Procs(helpers.Procs):
+    """Node processes (``helpers.Procs``), and the dashboard's URL once it serves."""
 
     def dashboard(self, name: str, *args: str, timeout_s: float = 60) -> str:
         """Start ``hydromon dashboard --port 0 ARGS``; its URL once it serves."""
         self.start(name, "dashboard", "--port", "0", *args)
         wait_for(lambda: URL_RE.search(self.log(name)), timeout_s, f"the {name}'s URL", alive=self.check_alive)
         return URL_RE.search(self.log(name)).group(1)
-
-    def log(self, name: str) -> str:
-        return (self.dir / f"{name}.log").read_text(errors="replace")
-
-    def check_alive(self) -> None:
-        for name, p in self.procs.items():
-            if name not in self.finished and p.poll() is not None:
-                raise AssertionError(f"{name} exited early with {p.returncode}:\n{self.log(name)[-3000:]}")
-
-    def stop(self, name: str, sig=signal.SIGINT, timeout_s: float = 30) -> int:
-        self.finished.add(name)
-        self.procs[name].send_signal(sig)
-        return self.procs[name].wait(timeout_s)
-
-    def close(self) -> None:
-        for p in reversed(list(self.procs.values())):
-            if p.poll() is None:
-                p.terminate()
-        for p in reversed(list(self.procs.values())):
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(10)
-        for log in self._logs:
-            log.close()
 
 
 @contextmanager
