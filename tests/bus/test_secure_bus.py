@@ -14,9 +14,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -24,13 +22,13 @@ import orjson
 import pytest
 import zenoh
 
-from helpers import health_bytes, sample_bytes, wait_for
+import helpers
+from helpers import CLI, health_bytes, sample_bytes, wait_for
 from hydromon.bus.session import JSON, free_tcp_endpoint, open_session
 from hydromon.store.mcap_read import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 DEPLOY = ROOT / "deploy" / "zenoh"
-CLI = [sys.executable, "-m", "hydromon.cli"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 RIGS = ("rig-01", "rig-02")
 FORGED_SEQ = 10**6  # a verdict no monitor sent for these rigs
@@ -41,37 +39,23 @@ pytestmark = [pytest.mark.network,
               pytest.mark.skipif(shutil.which("openssl") is None, reason="the certificates are made with openssl")]
 
 
-class Procs:
-    """Node processes by name, each logging to ``<dir>/<name>.log``; :meth:`close` ends what still runs."""
+class Procs(helpers.Procs):
+    """Node processes (``helpers.Procs``), and this process's own sessions, closed first by
+    :meth:`close` (open sessions would hang its exit)."""
 
     def __init__(self, directory: Path):
-        self.dir, self.procs, self._logs = directory, {}, []
-        self.sessions: list[zenoh.Session] = []  # of this process: closed by close(), or its exit would hang
+        super().__init__(directory)
+        self.sessions: list[zenoh.Session] = []
 
     def session(self, s: zenoh.Session) -> zenoh.Session:
         self.sessions.append(s)
         return s
 
-    def start(self, name: str, *args: str) -> subprocess.Popen:
-        log = open(self.dir / f"{name}.log", "wb")
-        self._logs.append(log)
-        p = subprocess.Popen(CLI + list(args), stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=ENV)
-        self.procs[name] = p
-        return p
-
-    def log(self, name: str) -> str:
-        return (self.dir / f"{name}.log").read_text(errors="replace")
-
     def alive(self):
+        """Every node but ``watch`` (which runs once and ends) is still running."""
         for name, p in self.procs.items():
             if p.poll() is not None and name not in ("watch",):
                 raise AssertionError(f"{name} exited ({p.returncode}): {self.log(name)[-2000:]}")
-
-    def stop(self, name: str, timeout: float = 30) -> int:
-        p = self.procs[name]
-        if p.poll() is None:
-            p.send_signal(signal.SIGINT)
-        return p.wait(timeout)
 
     def close(self) -> None:
         for s in self.sessions:
@@ -79,17 +63,7 @@ class Procs:
                 s.close()
             except zenoh.ZError:
                 pass
-        for p in self.procs.values():
-            if p.poll() is None:
-                p.terminate()
-        for p in self.procs.values():
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(10)
-        for log in self._logs:
-            log.close()
+        super().close()
 
 
 def make_certs(directory: Path, *rigs: str) -> Path:
