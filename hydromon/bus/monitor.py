@@ -25,7 +25,7 @@ import zenoh
 from hydromon.bus.checkpoints import Saver, restore_from
 from hydromon.bus.failover import Failover
 from hydromon.bus.live_commission import LiveCommissioning
-from hydromon.bus.quietgc import QuietGC
+from hydromon.store.quietgc import QuietGC
 from hydromon.bus.rig_keys import RigKeys
 from hydromon.bus.session import JSON
 from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, health_key, liveliness_key, ranges_key

@@ -34,7 +34,7 @@ from hydromon.contract import DEFAULT_NAMESPACE, FRAME_MAX, check_namespace, con
 from hydromon.bus.framer import Framer
 from hydromon.engine.samples import sample_payload
 from hydromon.store.fleetfile import FleetSpec, RigSpec
-from hydromon.bus.quietgc import QuietGC
+from hydromon.store.quietgc import QuietGC
 from plant_sim.live import PlantFleet
 
 __all__ = ["sample_deadline", "wait_time", "SimStats", "SimNode", "run_sim", "DEFAULT_BLOCK"]

@@ -35,6 +35,7 @@ import orjson
 from hydromon.contract import DEFAULT_NAMESPACE, RESTART_RUN, RigConfig, check_namespace, split_rig_key
 from hydromon.engine.batch import RegularBatch
 from hydromon.engine.counters import MonitorCounters
+from hydromon.engine.frame_batch import FrameBatch
 from hydromon.engine.frames import FrameInput
 from hydromon.engine.ranges_book import RangesBook
 from hydromon.engine.rig_table import ROW_STATE, Rig, RigTable
@@ -56,7 +57,7 @@ _SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
 
 
-class MonitorCore(RegularBatch, RigTable, FrameInput):
+class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput):
     """The monitor without the bus: ``process(messages) -> [(health_key, payload)]``.
 
     Parameters
@@ -361,7 +362,7 @@ class MonitorCore(RegularBatch, RigTable, FrameInput):
                 self._cur = 0
                 self._one(*messages[0], out)
             else:
-                for i, key, payload in self._regular(messages):
+                for i, key, payload in self._regular_frames(self._regular(messages)):
                     self._cur = i
                     self._one(key, payload, out)
         self._flush(out)

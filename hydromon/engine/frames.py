@@ -30,7 +30,7 @@ import orjson
 from hydromon.contract import DRIVE_LIMIT, FRAME_MAX, SAMPLE_COLUMNS, SEQ_MAX, frame_key
 from hydromon.engine.validate import VALUE_LIMITS, Rejected, decode_json, parse_frame
 
-__all__ = ["frame_payload", "block_frames", "frame_columns", "decode_frame", "frame_samples", "FrameInput"]
+__all__ = ["frame_payload", "block_frames", "frame_struct", "frame_columns", "decode_frame", "frame_samples", "FrameInput"]
 
 
 def frame_payload(seq: int, t: list, columns: list, u: list | None = None) -> bytes:
@@ -47,7 +47,8 @@ def frame_payload(seq: int, t: list, columns: list, u: list | None = None) -> by
 _FrameStruct = msgspec.defstruct(
     "_FrameStruct", [("seq", int), *((name, list[float]) for name in SAMPLE_COLUMNS), ("u", list[float] | None, None)],
     forbid_unknown_fields=True)
-_DECODE = msgspec.json.Decoder(_FrameStruct).decode
+#: the typed decode of a frame payload (its fields as attributes); raises ``msgspec.DecodeError``
+frame_struct = msgspec.json.Decoder(_FrameStruct).decode
 
 
 _L_UG, _L_X1, _L_X3, _L_X4, _L_X5 = VALUE_LIMITS.tolist()  # |value| limits of ug, x1, x3, x4, x5
@@ -70,7 +71,7 @@ def frame_columns(payload: bytes) -> tuple[int, tuple, list | None]:
     x3, x4 [Pa], x5 [m] (floats, one per sample), and the drive u [V] or None. Raises ``Rejected``
     with a sample's reasons (``hydromon.engine.validate``)."""
     try:
-        f = _DECODE(payload)
+        f = frame_struct(payload)
     except msgspec.DecodeError:
         f = None
     if f is not None and _valid(f.seq, f.t, f.ug, f.x1, f.x3, f.x4, f.x5, f.u):

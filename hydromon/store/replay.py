@@ -27,6 +27,7 @@ import zenoh
 from hydromon.contract import DEFAULT_NAMESPACE, SAMPLE_LEAVES, parse_rig_key, rig_key_parts
 from hydromon.store.mcap_layout import rig_topic
 from hydromon.store.mcap_read import read_recording, read_summary
+from hydromon.store.quietgc import QuietGC
 
 __all__ = ["KeyFilter", "recording_span", "recording_topics", "window", "read_window", "iter_window",
            "replay_direct", "health_jsonl", "NothingToReplay", "check_window", "window_problem", "sample_namespaces",
@@ -202,23 +203,32 @@ def iter_window(src, *, keys: Iterable[str] | None = None, start: float | None =
 
 def replay_direct(src, *, keys: Iterable[str] | None = None, start: float | None = None,
                   duration: float | None = None, namespace: str = DEFAULT_NAMESPACE, core=None,
-                  batch: int = 10000):
+                  batch: int = 1000, batch_bytes: int = 256 * 1024):
     """Run a MonitorCore over the recording as fast as possible.
 
-    Returns ``(health, core)``: the health messages ``[(key, payload bytes)]`` in order,
-    and the core (counters, latest health per rig).
+    Messages go to the core in batches of at most ``batch`` messages and about ``batch_bytes``
+    bytes of payload (a frame holds many samples: the byte budget keeps a batch's samples about
+    even either way; measured at 10 rigs, 60 s of frames of 10: 352,000 samples/s in batches of
+    500 frames, 232,000 in batches of 10,000, the rigs' configs and first frames then sharing
+    a batch with all the others and taking the per-message path). Garbage is collected between
+    batches (``hydromon.store.quietgc``). Returns ``(health, core)``: the health messages
+    ``[(key, payload bytes)]`` in order, and the core (counters, latest health per rig).
     """
     from hydromon.engine.core import MonitorCore
 
     core = core or MonitorCore(namespace)
     health: list[tuple[str, bytes]] = []
     buf: list[tuple[str, bytes]] = []
-    for key, payload, _ in iter_window(src, keys=keys, start=start, duration=duration):
-        buf.append((key, payload))
-        if len(buf) >= batch:
-            health += core.process(buf)
-            buf = []
-    health += core.process(buf)
+    size = 0
+    with QuietGC() as quiet:
+        for key, payload, _ in iter_window(src, keys=keys, start=start, duration=duration):
+            buf.append((key, payload))
+            size += len(payload)
+            if len(buf) >= batch or size >= batch_bytes:
+                health += core.process(buf)
+                buf, size = [], 0
+                quiet.idle()
+        health += core.process(buf)
     return health, core
 
 

@@ -183,3 +183,76 @@ def test_frame_payload_is_a_contract_frame():
     p = frame_payload(3, [0.03, 0.04], [[0.1, 0.2], [0.0, 0.0], [1e6, 1e6], [2e6, 2e6], [0.0, 1e-5]], [0.5, 0.6])
     f = Frame.model_validate_json(p)
     assert f.seq == 3 and f.x5 == [0.0, 1e-5] and f.u == [0.5, 0.6]
+
+
+# -- frames taken a batch at once and one by one agree --------------------------------------------
+
+SHORT = fleet_messages(SPEC, 2.0, frame=10)  # 5 rigs x 20 frames of 10
+_FRAMES = {p for k, p in SHORT if k.endswith("/frame")}
+
+
+def _with_u(payload: bytes) -> bytes:
+    d = orjson.loads(payload)
+    return orjson.dumps({**d, "u": [0.0] * len(d["t"])})
+
+
+def _seq_shifted(payload: bytes, by: int) -> bytes:
+    d = orjson.loads(payload)
+    return orjson.dumps({**d, "seq": d["seq"] + by})
+
+
+def _corrupted(payload: bytes, how: str) -> bytes:
+    """The frame with one thing wrong that the contract refuses (its seq still the right one)."""
+    d = orjson.loads(payload)
+    if how == "limit":
+        d["x3"][-1] = 2e9
+    elif how == "time":
+        d["t"][3] = d["t"][2]
+    elif how == "length":
+        d["ug"] = d["ug"][:-1]
+    return orjson.dumps(d)
+
+
+@st.composite
+def disturbed_runs(draw):
+    """The short fleet's messages with frames dropped, repeated, shifted in seq, carrying the drive,
+    swapped with a neighbour, followed by a malformed one or malformed in place, or after a config
+    change, and how to cut them into batches."""
+    msgs = list(SHORT)
+    for _ in range(draw(st.integers(0, 8))):
+        i = draw(st.sampled_from([j for j, (_, p) in enumerate(msgs) if p in _FRAMES]))  # a frame as sent
+        key, payload = msgs[i]
+        what = draw(st.sampled_from(["drop", "repeat", "shift", "u", "swap", "bad", "corrupt", "config"]))
+        if what == "drop":
+            msgs[i] = (key.replace("/frame", "/health"), b"{}")  # ignored: a gap in the rig's frames
+        elif what == "repeat":
+            msgs.insert(i + 1, (key, payload))
+        elif what == "shift":
+            msgs[i] = (key, _seq_shifted(payload, draw(st.sampled_from([-3, 1, 5, 2000]))))
+        elif what == "u":
+            msgs[i] = (key, _with_u(payload))
+        elif what == "swap" and i + 1 < len(msgs):
+            msgs[i], msgs[i + 1] = msgs[i + 1], msgs[i]
+        elif what == "bad":
+            msgs.insert(i + 1, (key, draw(st.sampled_from(BAD_FRAMES))[1]))
+        elif what == "config":  # the rig's load changes before this frame: its estimates restart
+            config = orjson.loads(dict(SHORT)[key.replace("/frame", "/config")])
+            msgs.insert(i, (key.replace("/frame", "/config"), orjson.dumps({**config, "F_L": 3000.0})))
+        elif what == "corrupt":
+            msgs[i] = (key, _corrupted(payload, draw(st.sampled_from(["limit", "time", "length"]))))
+    every = draw(st.sampled_from([2, 7, 25, 60]))  # batch sizes: the frame keys are known after the first
+    extra = draw(st.lists(st.integers(1, len(msgs) - 1), max_size=4))
+    return msgs, sorted(set(range(every, len(msgs), every)) | set(extra))
+
+
+@settings(max_examples=25, deadline=None)
+@given(disturbed_runs())
+def test_frames_taken_a_batch_at_once_give_what_one_by_one_gives(run_and_cuts):
+    msgs, cuts = run_and_cuts
+    one = MonitorCore(NS, stale_samples=35)  # a gap's stale windows outlast a frame, and batches
+    want = [h for m in msgs for h in one.process([m])]  # a lone message always takes the per-message path
+    many = MonitorCore(NS, stale_samples=35)
+    got = [h for a, b in zip([0, *cuts], [*cuts, len(msgs)]) for h in many.process(msgs[a:b])]
+    assert got == want
+    assert vars(many.counters) == vars(one.counters)
+    assert many.last_seqs().tolist() == one.last_seqs().tolist()

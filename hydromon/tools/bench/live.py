@@ -63,7 +63,7 @@ def live_step(n_rigs: int, seconds: float = 10.0, warm: float = 3.0, grace: floa
         health.append((clock(), s.payload.to_bytes(), str(s.key_expr)))
 
     py = [sys.executable, "-m", "hydromon.cli"]
-    from hydromon.bus.quietgc import QuietGC
+    from hydromon.store.quietgc import QuietGC
 
     # the probe timestamps in zenoh callbacks: a garbage collection in this process would
     # delay them and count as latency; collections run in the sleeps below instead

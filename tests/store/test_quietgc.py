@@ -1,4 +1,4 @@
-"""hydromon.bus.quietgc: automatic collection off inside the context, cycles still collected in idle(),
+"""hydromon.store.quietgc: automatic collection off inside the context, cycles still collected in idle(),
 nesting across threads, the collector's state restored."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import weakref
 
 import pytest
 
-from hydromon.bus.quietgc import QuietGC
+from hydromon.store.quietgc import QuietGC
 
 
 class _Node:

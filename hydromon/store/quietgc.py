@@ -1,4 +1,4 @@
-"""Garbage collection at moments the caller chooses, for paced real-time loops.
+"""Garbage collection at moments the caller chooses, for paced real-time loops and batch replay.
 
 CPython's cycle collector runs when allocations pass a threshold, i.e. at arbitrary points
 of a loop that allocates per message: the sim's publisher and the monitor's drain loop then
@@ -8,7 +8,10 @@ disabled 5 ms and 7 ms. Per-message objects are freed by reference counting anyw
 cycle collector is only needed for the rare cycle, so this runs it in the loop's idle time.
 
 Use as a context manager around the loop and call :meth:`QuietGC.idle` where the loop has
-slack (after a tick is published, before waiting for the next).
+slack (after a tick is published, before waiting for the next; between two batches of a replay).
+A direct replay is faster without automatic collection too: a batch's health payloads are
+thousands of new containers, each allocation past the threshold a collection (measured at 10
+rigs, 60 s of frames: health building 1.29 us a sample with automatic collection, 0.95 without).
 
 The survivors of each full collection are frozen too, so the next full collection looks only
 at what was allocated since. What a loop loads after entry (numba dispatchers, zenoh objects:
