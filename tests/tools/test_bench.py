@@ -159,6 +159,16 @@ def test_bench_rejects_bad_flags():
     assert main(["bench", "--live-rigs", "10,x", "--history", ""]) == 2
     assert main(["bench", "--frame", "1001", "--history", ""]) == 2
     assert main(["bench", "--frame", "-1", "--history", ""]) == 2
+    assert main(["bench", "--monitors", "0", "--history", ""]) == 2
+
+
+def test_shards_hold_every_rig_once_and_every_severity():
+    from hydromon.tools.bench.live import shard_ids
+
+    assert shard_ids(3, 1) == ["rig-0000", "rig-0001", "rig-0002"]
+    ids = shard_ids(10, 3)
+    assert ids[:4] == ["m0-rig-0000", "m1-rig-0001", "m2-rig-0002", "m0-rig-0003"]
+    assert sorted(i.split("-", 1)[1] for i in ids) == shard_ids(10, 1)
 
 
 @pytest.mark.network
@@ -176,6 +186,17 @@ def test_live_step_smoke(frame):
     assert r["cpu_monitor"] > 0
     assert not r["ok"] and sum(r["late_by_second"].values()) == r["health_received"]
     assert orjson.loads(orjson.dumps(r, option=orjson.OPT_SERIALIZE_NUMPY))["late_by_second"] == r["late_by_second"]
+
+
+@pytest.mark.network
+def test_live_step_with_two_monitors_grades_each_shard_once():
+    from hydromon.tools.bench import live_step
+
+    r = live_step(6, seconds=2.0, warm=1.0, grace=3.0, frame=10, monitors=2)
+    assert r["monitors"] == 2 and r["lost"] == 0 and r["health_missing"] == 0
+    assert r["health_received"] == r["health_expected"] == 6 * 20  # no rig graded twice, none left out
+    summaries = r["monitor_summary"].split(" | ")
+    assert [s.split(" rig(s)")[0] for s in summaries] == ["3", "3"]
 
 
 def test_naive_rejects_bad_shape():

@@ -11,6 +11,7 @@ KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (
 EXAMPLES = (
     'hydromon bench --quick',
     'hydromon bench --json --live-seconds 60',
+    'hydromon bench --json --no-live-samples --monitors 2 --live-rigs 1000,2000',
 )
 
 def add_arguments(parser) -> None:
@@ -25,6 +26,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--frame", type=int, default=10, metavar="N",
                         help="samples a frame in the live step-up (sim --frame N) and in replay_direct_framed "
                              "(default 10; 0: one message per sample only)")
+    parser.add_argument("--monitors", type=int, default=1, metavar="K",
+                        help="monitor processes in the live step-up, each grading its shard of the rigs "
+                             "(--rigs m<k>-*) from the one sim (default 1)")
     parser.add_argument("--no-live-samples", action="store_true",
                         help="skip the second live step-up with one message per sample (live_samples)")
     parser.add_argument("--history", default=None, metavar="FILE",
@@ -85,6 +89,8 @@ def print_table(res, stream=None) -> None:
         if live is None:
             continue
         framed = f"frames of {live['frame']}, " if live.get("frame") else "one message a sample, "
+        if (live.get("monitors") or 1) > 1:
+            framed += f"{live['monitors']} monitors, "
         if live.get("rigs"):
             t.add_row(name, _fmt(live.get("samples_per_s")), "samples/s",
                       f"{framed}{live['rigs']} rigs, lost {live.get('lost')}, p50 {_fmt(live.get('p50_ms'))} ms, "
@@ -92,7 +98,7 @@ def print_table(res, stream=None) -> None:
         else:
             t.add_row(name, "-", "", str(live.get("reason", "not measured")))
     t.add_row("monitor_us_per_sample", _fmt(res.monitor_us_per_sample), "us",
-              "live's monitor CPU (all threads) per sample, its best step")
+              "live's monitor CPU (all threads, all monitors) per sample, its best step")
     console = Console(file=stream or sys.stdout)
     console.print(t)
     mi = res.machine
@@ -145,6 +151,8 @@ def run(args) -> int:
         raise ValueError(f"--live-seconds {args.live_seconds!r} must be > 0")
     if not 0 <= args.frame <= 1000:
         raise ValueError(f"--frame {args.frame!r} must be 0..1000 samples")
+    if not 1 <= args.monitors <= 64:
+        raise ValueError(f"--monitors {args.monitors!r} must be 1..64")
     kw = {}
     if args.live_rigs:
         try:
@@ -155,7 +163,8 @@ def run(args) -> int:
             raise ValueError(f"--live-rigs {args.live_rigs!r}: rig counts must be >= 1")
         kw["live_steps"] = steps
     opts = BenchOptions(quick=args.quick, live=not args.no_live, live_seconds=args.live_seconds,
-                        frame=args.frame or None, live_samples=not args.no_live_samples, **kw)
+                        frame=args.frame or None, live_samples=not args.no_live_samples, monitors=args.monitors,
+                        **kw)
     res = run_bench(opts)
     if args.history:
         path = Path(args.history)

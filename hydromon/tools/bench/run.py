@@ -70,6 +70,7 @@ class BenchOptions:
     transport_seconds: float = 5.0
     frame: int | None = 10          # samples a frame in live and replay_direct_framed (None: samples only)
     live_samples: bool = True       # also step up live with one message per sample
+    monitors: int = 1               # monitor processes in the live step-up, sharded by --rigs
 
 
 def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
@@ -138,8 +139,9 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
 
     def step_up(frame):
         if q:  # a smoke run: one small step
-            return bench_live(opts.live_steps[:1], seconds=min(opts.live_seconds, 3.0), refine=0, frame=frame)
-        return bench_live(opts.live_steps, seconds=opts.live_seconds, frame=frame)
+            return bench_live(opts.live_steps[:1], seconds=min(opts.live_seconds, 3.0), refine=0, frame=frame,
+                              monitors=opts.monitors)
+        return bench_live(opts.live_steps, seconds=opts.live_seconds, frame=frame, monitors=opts.monitors)
 
     if opts.live:
         live = step_up(opts.frame)
