@@ -208,8 +208,9 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 on_health(key, payload)
 
     def publish_events() -> None:
+        put, declared = session.put, keys.events
         for key, payload in core.take_events():
-            session.put(key, payload, encoding=JSON, congestion_control=zenoh.CongestionControl.BLOCK)
+            put(declared.get(key, key), payload, encoding=JSON, congestion_control=zenoh.CongestionControl.BLOCK)
 
     if group is not None:  # its role first: the probe waits up to a second, with no samples queueing meanwhile
         failover = Failover(session, namespace, group, node_name, standby=standby)

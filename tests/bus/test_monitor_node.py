@@ -12,7 +12,7 @@ from helpers import health_seqs, wait_for
 from hydromon.bus.monitor import run_monitor
 from hydromon.bus.session import listening_session, open_session
 from hydromon.bus.sim import run_sim
-from hydromon.contract import Health, RigConfig, health_key
+from hydromon.contract import Health, RigConfig, event_key, health_key
 from hydromon.engine.core import MonitorCore
 from hydromon.engine.samples import sample_payload
 from hydromon.engine.watches import RateLimitedLog
@@ -297,23 +297,26 @@ def _core_with(rig_ids):
     return core
 
 
-def test_rig_keys_declares_each_rigs_sample_and_health_key_once_and_undeclares_them():
+def test_rig_keys_declares_each_rigs_sample_health_and_event_key_once_and_undeclares_them():
     from hydromon.bus.rig_keys import RigKeys
 
     session, core = _KeySession(), _core_with(["a", "b"])
     keys = RigKeys(session, NS)
     keys.sync(core)
     keys.sync(core)
-    assert sorted(session.declared) == sorted(f"{NS}/rig/{r}/{leaf}" for r in "ab" for leaf in ("sample", "health"))
+    leaves = ("sample", "health", "event")
+    assert sorted(session.declared) == sorted(f"{NS}/rig/{r}/{leaf}" for r in "ab" for leaf in leaves)
     assert keys.health[health_key("a", NS)] == ("ke", health_key("a", NS))
+    assert keys.events[event_key("a", NS)] == ("ke", event_key("a", NS))
     core.process([(f"{NS}/rig/c/sample", sample_payload(0, 0.0, [2.0, 0.0, 6e6, 6e6, 0.0]))])
     keys.sync(core)
-    assert len(session.declared) == 6 and session.declared[-2:] == [f"{NS}/rig/c/sample", f"{NS}/rig/c/health"]
+    assert len(session.declared) == 9 and session.declared[-3:] == [f"{NS}/rig/c/{leaf}" for leaf in leaves]
     keys.forget(core.forget(["a"]))
-    assert sorted(session.undeclared) == [f"{NS}/rig/a/health", f"{NS}/rig/a/sample"]
-    assert health_key("a", NS) not in keys.health
+    assert sorted(session.undeclared) == sorted(f"{NS}/rig/a/{leaf}" for leaf in leaves)
+    assert health_key("a", NS) not in keys.health and event_key("a", NS) not in keys.events
     keys.close()
-    assert sorted(session.undeclared) == sorted(session.declared) and not keys.health and not keys.off
+    assert sorted(session.undeclared) == sorted(session.declared) and not keys.health and not keys.events
+    assert not keys.off
 
 
 def test_rig_keys_gives_up_beyond_its_rig_limit_and_on_a_flood_of_rejects():
@@ -332,7 +335,7 @@ def test_rig_keys_gives_up_beyond_its_rig_limit_and_on_a_flood_of_rejects():
     assert not keys.off  # 3 rejects since the last check: not more than max_rejects
     core.process([(f"{NS}/rig/bad.id/sample", b"{}")] * 4)
     keys.check(core)
-    assert keys.off and sorted(session.undeclared) == sorted(session.declared) and len(session.declared) == 2
+    assert keys.off and sorted(session.undeclared) == sorted(session.declared) and len(session.declared) == 3
     core.process([(f"{NS}/rig/d/sample", sample_payload(0, 0.0, [2.0, 0.0, 6e6, 6e6, 0.0]))])
     keys.sync(core)
-    assert len(session.declared) == 2  # off for good
+    assert len(session.declared) == 3  # off for good
