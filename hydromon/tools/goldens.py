@@ -23,7 +23,7 @@ When a change of the monitor's numerics changes the health, regenerate everythin
 
     python -m hydromon.tools.goldens --update
 
-and commit ``recordings/``. Without ``--update`` the command checks the committed files.
+and commit ``recordings/`` (``--update NAME ...`` regenerates only those, a new golden for one). Without ``--update`` the command checks the committed files.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ from hydromon.contract import DEFAULT_NAMESPACE
 from hydromon.store.fleetfile import FleetSpec, RigSpec, default_fleet
 from hydromon.bus.inprocess import Worker, await_recorder_and_monitor
 
-__all__ = ["Segment", "Golden", "GOLDENS", "RECORDINGS_DIR", "MadeGolden", "make_golden", "write_goldens",
+__all__ = ["Segment", "Golden", "GOLDENS", "RECORDINGS_DIR", "MadeGolden", "make_golden", "write_goldens", "made_from_files",
            "stored_health", "read_health_jsonl", "check_golden", "true_grades", "main"]
 
 RECORDINGS_DIR = Path(__file__).resolve().parents[2] / "recordings"
@@ -79,12 +79,14 @@ class Segment:
 
 @dataclass(frozen=True)
 class Golden:
-    """A golden recording: its file name stem, the simulated fleet, the segments, a note."""
+    """A golden recording: its file name stem, the simulated fleet, the segments, a note, and
+    ``frame`` N when the sim publishes frames of N samples (None: one message a sample)."""
 
     name: str
     fleet: FleetSpec
     segments: tuple[Segment, ...]
     about: str
+    frame: int | None = None
 
     @property
     def mcap(self) -> str:
@@ -104,6 +106,10 @@ GOLDENS: tuple[Golden, ...] = (
            (Segment(5.0), Segment(5.0, skip=0.5), Segment(6.0, restart=True)),
            "one rig (Table 4 group 4, noise-free): 5 s, a 0.5 s dropout (seq gap of 50), 5 s, "
            "then the rig restarts (seq from 0) and runs 6 s"),
+    Golden("table4-frames", FleetSpec(seed=1, rigs=default_fleet(noise="realistic", seed=1).rigs[:2]),
+           (Segment(5.0),),
+           "the first two rigs of table4-realistic (table4-g1, g2), published as frames of 10 samples, 5 s: "
+           "each rig's health is that of its first 5 s in table4-realistic, byte for byte", frame=10),
 )
 """The committed golden recordings, made by ``python -m hydromon.tools.goldens --update``.
 
@@ -173,9 +179,9 @@ def make_golden(golden: Golden, path, *, rate: float = 20.0, namespace: str = DE
                 if seg.skip > 0:
                     fleet.step(int(round(seg.skip / fleet.h)))  # simulated, never published
                 node = SimNode(session, golden.fleet.ids, fleet, namespace=namespace, rate=rate,
-                               congestion=zenoh.CongestionControl.BLOCK)
+                               congestion=zenoh.CongestionControl.BLOCK, frame=golden.frame)
                 stats = node.run(duration=seg.seconds)
-                published += stats.published
+                published += stats.samples * len(golden.fleet.ids)  # samples, one a message or many a frame
         finally:
             # data-flow order: every sample is graded, every verdict recorded
             for ev, w in ((stop_mon, mon), (stop_rec, rec)):
@@ -290,8 +296,24 @@ def _readme(made: dict[str, MadeGolden], rate: float) -> str:
     return "\n".join(lines)
 
 
-def write_goldens(directory=RECORDINGS_DIR, *, rate: float = 20.0, attempts: int = 3, log=sys.stderr) -> dict:
-    """Regenerate every golden of :data:`GOLDENS` and the README into ``directory``.
+def made_from_files(golden: Golden, directory=RECORDINGS_DIR) -> MadeGolden:
+    """What :func:`make_golden` said of a golden already in ``directory``, from its files (a
+    direct replay of the recording)."""
+    from hydromon.store.mcap_read import read_recording
+    from hydromon.store.replay import replay_direct
+
+    path = Path(directory) / golden.mcap
+    health = stored_health(path)
+    _, core = replay_direct(path)
+    final = {key.split("/")[-2]: orjson.loads(payload)["grade"] for key, payload in health}
+    return MadeGolden(path=path, health=health, counters=core.counters.as_dict(), samples=core.counters.accepted,
+                      recorded=sum(1 for _ in read_recording(path)), final=final)
+
+
+def write_goldens(directory=RECORDINGS_DIR, *, rate: float = 20.0, attempts: int = 3, log=sys.stderr,
+                  names=None) -> dict:
+    """Regenerate the goldens of :data:`GOLDENS` named in ``names`` (None: all) and the README
+    into ``directory`` (the others are read from their files).
 
     Each recording is made in a temporary file, checked (complete, direct replay equal to
     the stored health) and only then moved over the old one. Returns name -> MadeGolden.
@@ -300,8 +322,14 @@ def write_goldens(directory=RECORDINGS_DIR, *, rate: float = 20.0, attempts: int
 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    made: dict[str, MadeGolden] = {}
+    unknown = set(names or ()) - {g.name for g in GOLDENS}
+    if unknown:
+        raise ValueError(f"no golden named {', '.join(sorted(unknown))} (there are {', '.join(g.name for g in GOLDENS)})")
+    made: dict[str, MadeGolden] = {g.name: made_from_files(g, directory) for g in GOLDENS
+                                   if names and g.name not in names}
     for g in GOLDENS:
+        if g.name in made:
+            continue
         last_error = None
         for attempt in range(1, attempts + 1):
             with tempfile.TemporaryDirectory(dir=directory, prefix=".goldens-") as tmp:
@@ -334,14 +362,15 @@ def write_goldens(directory=RECORDINGS_DIR, *, rate: float = 20.0, attempts: int
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m hydromon.tools.goldens", description=__doc__.splitlines()[0])
-    parser.add_argument("--update", action="store_true",
-                        help="regenerate every golden recording, its .health.jsonl and the README")
+    parser.add_argument("--update", nargs="*", metavar="NAME", default=None,
+                        help="regenerate the named golden recordings (none named: every one), their "
+                             ".health.jsonl and the README")
     parser.add_argument("--dir", default=str(RECORDINGS_DIR), help=f"where the goldens live (default {RECORDINGS_DIR})")
     parser.add_argument("--rate", type=float, default=20.0,
                         help="simulation speed while recording, relative to real time (default 20)")
     args = parser.parse_args(argv)
-    if args.update:
-        write_goldens(args.dir, rate=args.rate)
+    if args.update is not None:
+        write_goldens(args.dir, rate=args.rate, names=args.update or None)
         return 0
     bad = 0
     for g in GOLDENS:

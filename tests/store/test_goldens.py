@@ -18,7 +18,7 @@ from __future__ import annotations
 import orjson
 import pytest
 
-from helpers import health_seqs
+from helpers import by_rig, health_seqs
 from hydromon.contract import Health
 from hydromon.engine.evaluate import evaluate
 from hydromon.store.mcap_read import read_recording
@@ -121,6 +121,19 @@ def test_gap_and_restart_show_in_the_health():
     after = hs[-len(health_seqs(rig, 600)):]
     assert after[:n1] == hs[:n1]
     assert hs[n1 - 1]["grade"] == hs[-len(after) - 1]["grade"] == after[-1]["grade"] == "average"
+
+
+def test_a_rig_sending_frames_gets_the_health_it_gets_sending_samples():
+    """The framed golden's rigs are table4-realistic's first two, same noise: each rig's recorded
+    health is, byte for byte, what it was given for its first 5 s of samples."""
+    (framed,) = [g for g in GOLDENS if g.frame is not None]
+    (samples,) = [g for g in GOLDENS if g.name == "table4-realistic"]
+    got, want = by_rig(stored_health(_golden_files(framed)[0])), by_rig(stored_health(_golden_files(samples)[0]))
+    assert sorted(got) == framed.fleet.ids and len(got["table4-g1"]) == 50
+    kinds = {k.rsplit("/", 1)[1] for k, _, _, _ in read_recording(RECORDINGS_DIR / framed.mcap)}
+    assert "frame" in kinds and "sample" not in kinds
+    for rig, payloads in got.items():
+        assert payloads == want[rig][:len(payloads)], f"{rig}: {_first_difference(want[rig], payloads)}"
 
 
 def test_the_recordings_directory_holds_exactly_the_goldens():
