@@ -31,7 +31,7 @@ import numpy as np
 import orjson
 
 from hydromon.contract import SAMPLE_COLUMNS
-from hydromon.engine.frames import _DECODE, block_frames
+from hydromon.engine.frames import block_frames, frame_struct
 from hydromon.engine.samples import sample_payload, sim_samples
 
 _B64 = msgspec.json.Decoder(msgspec.defstruct("_B64Frame", [("seq", int), *((c, str) for c in SAMPLE_COLUMNS)])).decode
@@ -49,7 +49,7 @@ def _encodings(n: int):
     singles = [sample_payload(k, float(vals[k, 0]), vals[k, 1:].tolist()) for k in range(n)]
 
     def json_msgspec():
-        f = _DECODE(json_frame)
+        f = frame_struct(json_frame)
         return np.array((f.t, f.ug, f.x1, f.x3, f.x4, f.x5)).T
 
     def json_orjson():
