@@ -49,7 +49,7 @@ __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", 
            "nominal_params", "BLOCKS", "orifice_factors", "merge_specs"]
 
 BLOCKS = ("force", "rest", "chamber", "valve")
-VAR_FLOOR = {"force": 25.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
+VAR_FLOOR = {"force": 1.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
 """Resolution floors of the blocks' residual variances [N^2, N^2, (m^3/s)^2, m^2] (5 N, 2 N,
 1e-7 m^3/s, 0.2 um rms), well below realistic sensor noise: on near noise-free records a
 scale-free ratio of tiny model-approximation errors would otherwise look like evidence."""
@@ -149,6 +149,8 @@ class Block:
     """Rest block: search an extra static level F_s on ``STATIC_GRID``."""
     key: tuple | None = None
     """Valve block: what its fit depends on (for the fit cache); X holds du (N, 1) [V]."""
+    scored: np.ndarray | None = None
+    """Rows the residual variance (``Fit.mse``) counts (None: all)."""
     y_noise: float = 0.0
     """Expected variance of the sensor noise in y itself [y unit^2]: what no model explains,
     left out of ``Fit.mse`` so that its ratios compare what the models do explain."""
@@ -181,6 +183,13 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     slow = (np.abs(vl) < max(3.0 * sig.v_noise, 5e-4)).astype(float)
     near = np.convolve(slow, np.ones(w), mode="same") > 0
     keep = ~near[rows]
+    # rows within two filter windows of a command step are fitted (they carry the mass) but not
+    # scored: the step makes the acceleration jump, and the central difference of the smoothed
+    # x1 is not the smoothed acceleration there (a clean 20 s steps record left 2.5 N rms
+    # there, 0.1 N elsewhere, which a load offset half explained)
+    step = np.zeros(sig.n)
+    step[2:] = np.abs(np.diff(sig.ug, 2)) > STEP_TOL
+    scored = ~(np.convolve(step, np.ones(2 * w - 1), mode="same") > 0)[rows][keep]
     fy = sig.smooth(a1 * p1 - a2 * p2 - cfg.F_L, w)[rows]
     fcols = {"m": sig.deriv(x1, 2, w), "B_fv": vf, "f_c": sig.smooth(np.sign(vl), w), "K_t": sig.smooth(x1, w)}
     for name, fn in spec.force_cols.items():
@@ -196,7 +205,7 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     # realistic noise it is most of the force residual and would hide a 50 N friction hump
     y_noise = (a1 * a1 * sig.sigma[1] ** 2 + a2 * a2 * sig.sigma[2] ** 2) * sig.gain_f[0] ** 2
     force = Block("force", fy[keep], fX, tuple(fcols), rows[keep], np.ones(int(keep.sum()), bool),
-                  noise_load=fnl, y_noise=float(y_noise))
+                  noise_load=fnl, y_noise=float(y_noise), scored=scored)
     # rest rows: the piston (nearly) stands still, friction holds whatever the net force is up
     # to the static level; residual = the net force beyond it (a dead zone), see fit_blocks
     # (no rest rows when the position noise hides whether the piston stands: a slow slide
@@ -275,6 +284,9 @@ class Fit:
         """Mean squared residual over the rows, less the regressor-noise share (so models
         whose columns carry the same noise differently compare on what they explain);
         floored at 1 % of the raw mean."""
+        b = self.blocks[name]
+        if b.scored is not None:
+            rows_mask = rows_mask & b.scored
         r = self.residuals[name][rows_mask]
         if not len(r):
             return math.nan
