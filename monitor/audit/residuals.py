@@ -55,6 +55,10 @@ VAR_FLOOR = {"force": 1.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
 scale-free ratio of tiny model-approximation errors would otherwise look like evidence."""
 REST_V_RESOLUTION = 2e-3  # [m/s] rest rows need a velocity resolution (3 noise sigmas) finer than this
 STATIC_GRID = np.linspace(0.0, 1200.0, 121)  # [N] static friction above Coulomb searched by ``static_search``
+RESOLVE = {"force": 0.05, "rest": 0.0, "chamber": 0.0, "valve": 0.0}
+"""Share of the predicted regressor noise below which a residual variance beyond it is not
+resolved [-]: the force equation's regressor noise (m times the acceleration noise) is only as
+good as the fitted mass, which stress noise makes meaningless."""
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
 
@@ -183,13 +187,13 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     slow = (np.abs(vl) < max(3.0 * sig.v_noise, 5e-4)).astype(float)
     near = np.convolve(slow, np.ones(w), mode="same") > 0
     keep = ~near[rows]
-    # rows within two filter windows of a command step are fitted (they carry the mass) but not
+    # rows within a filter window of a command step are fitted (they carry the mass) but not
     # scored: the step makes the acceleration jump, and the central difference of the smoothed
     # x1 is not the smoothed acceleration there (a clean 20 s steps record left 2.5 N rms
     # there, 0.1 N elsewhere, which a load offset half explained)
     step = np.zeros(sig.n)
     step[2:] = np.abs(np.diff(sig.ug, 2)) > STEP_TOL
-    scored = ~(np.convolve(step, np.ones(2 * w - 1), mode="same") > 0)[rows][keep]
+    scored = ~(np.convolve(step, np.ones(w), mode="same") > 0)[rows][keep]
     fy = sig.smooth(a1 * p1 - a2 * p2 - cfg.F_L, w)[rows]
     fcols = {"m": sig.deriv(x1, 2, w), "B_fv": vf, "f_c": sig.smooth(np.sign(vl), w), "K_t": sig.smooth(x1, w)}
     for name, fn in spec.force_cols.items():
@@ -280,10 +284,24 @@ class Fit:
     residuals: dict
     noise_terms: dict
 
-    def mse(self, name: str, rows_mask: np.ndarray) -> float:
+    def floor(self, name: str, rows_mask: np.ndarray) -> float:
+        """The smallest residual variance beyond noise these rows resolve [block unit^2]:
+        ``RESOLVE`` of the regressor-noise share, which depends on the fitted parameters (at
+        stress noise a mass fitted -4000 kg made it 1.4e6 N^2, and a load offset that moved the
+        mass changed it by 30 %)."""
+        b = self.blocks[name]
+        if b.scored is not None:
+            rows_mask = rows_mask & b.scored
+        r = self.residuals[name][rows_mask]
+        if not len(r):
+            return 0.0
+        return RESOLVE[name] * float(np.mean(self.noise_terms[name][rows_mask]))
+
+    def mse(self, name: str, rows_mask: np.ndarray, floor: float = 0.0) -> float:
         """Mean squared residual over the rows, less the regressor-noise share (so models
         whose columns carry the same noise differently compare on what they explain);
-        floored at 1 % of the raw mean."""
+        floored at 1 % of the raw mean and at ``floor`` (a common floor when fits are compared,
+        see :meth:`floor`)."""
         b = self.blocks[name]
         if b.scored is not None:
             rows_mask = rows_mask & b.scored
@@ -297,7 +315,7 @@ class Fit:
             # candidate that widens the dead zone 0.27-1.0 against a threshold of 0.15
             floor = max(VAR_FLOOR[name], self.blocks[name].margin ** 2 / len(r))
         else:
-            floor = max(0.01 * raw, VAR_FLOOR[name])
+            floor = max(0.01 * raw, VAR_FLOOR[name], floor)
         noise = float(np.mean(self.noise_terms[name][rows_mask])) + self.blocks[name].y_noise
         return max(raw - noise, floor)
 
