@@ -50,7 +50,7 @@ __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", 
 
 BLOCKS = ("force", "rest", "chamber", "valve")
 VAR_FLOOR = {"force": 1.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
-"""Resolution floors of the blocks' residual variances [N^2, N^2, (m^3/s)^2, m^2] (5 N, 2 N,
+"""Resolution floors of the blocks' residual variances [N^2, N^2, (m^3/s)^2, m^2] (1 N, 2 N,
 1e-7 m^3/s, 0.2 um rms), well below realistic sensor noise: on near noise-free records a
 scale-free ratio of tiny model-approximation errors would otherwise look like evidence."""
 REST_V_RESOLUTION = 2e-3  # [m/s] rest rows need a velocity resolution (3 noise sigmas) finer than this
