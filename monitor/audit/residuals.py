@@ -59,6 +59,13 @@ RESOLVE = {"force": 0.05, "rest": 0.0, "chamber": 0.0, "valve": 0.0}
 """Share of the predicted regressor noise below which a residual variance beyond it is not
 resolved [-]: the force equation's regressor noise (m times the acceleration noise) is only as
 good as the fitted mass, which stress noise makes meaningless."""
+SPREAD = {"force": 0.5, "rest": 0.0, "chamber": 0.0, "valve": 0.0}
+"""Share of the sampling spread of the noise's mean square below which a residual variance
+beyond the noise is not resolved [-]. The spread of the mean of n squared residuals of noise
+variance s2 is s2 sqrt(2 / n_eff), with n_eff = n / FORCE_WINDOW independent rows (the filter
+correlates neighbours): at realistic noise (about 20 N rms of net force) it is 50-100 N^2
+on the held-out part, and a difference of a few N^2 between two fits' residual variances is
+noise, not evidence."""
 STEP_ERROR = 5.0  # [N] net-force noise rms above which the force rows next to a command step are scored
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
@@ -288,17 +295,20 @@ class Fit:
     noise_terms: dict
 
     def floor(self, name: str, rows_mask: np.ndarray) -> float:
-        """The smallest residual variance beyond noise these rows resolve [block unit^2]:
-        ``RESOLVE`` of the regressor-noise share, which depends on the fitted parameters (at
-        stress noise a mass fitted -4000 kg made it 1.4e6 N^2, and a load offset that moved the
-        mass changed it by 30 %)."""
+        """The smallest residual variance beyond noise these rows resolve [block unit^2]: the
+        larger of ``RESOLVE`` of the regressor-noise share, which depends on the fitted
+        parameters (at stress noise a mass fitted -4000 kg made it 1.4e6 N^2, and a load offset
+        that moved the mass changed it by 30 %), and ``SPREAD`` of the sampling spread of the
+        noise's mean square (regressor and left-side noise) over these rows."""
         b = self.blocks[name]
         if b.scored is not None:
             rows_mask = rows_mask & b.scored
         r = self.residuals[name][rows_mask]
         if not len(r):
             return 0.0
-        return RESOLVE[name] * float(np.mean(self.noise_terms[name][rows_mask]))
+        reg = float(np.mean(self.noise_terms[name][rows_mask]))
+        spread = (reg + b.y_noise) * math.sqrt(2.0 * FORCE_WINDOW / len(r))
+        return max(RESOLVE[name] * reg, SPREAD[name] * spread)
 
     def mse(self, name: str, rows_mask: np.ndarray, floor: float = 0.0) -> float:
         """Mean squared residual over the rows, less the regressor-noise share (so models
