@@ -63,9 +63,9 @@ SPREAD = {"force": 0.5, "rest": 0.0, "chamber": 0.0, "valve": 0.0}
 """Share of the sampling spread of the noise's mean square below which a residual variance
 beyond the noise is not resolved [-]. The spread of the mean of n squared residuals of noise
 variance s2 is s2 sqrt(2 / n_eff), with n_eff = n / FORCE_WINDOW independent rows (the filter
-correlates neighbours): at realistic noise (about 20 N rms of net force) it is 50-100 N^2
-on the held-out part, and a difference of a few N^2 between two fits' residual variances is
-noise, not evidence."""
+correlates neighbours): at realistic noise (about 20 N rms of net force) it is 85-115 N^2
+on the held-out part of a 20 s record, and a difference of a few N^2 between two fits'
+residual variances is noise, not evidence."""
 STEP_ERROR = 5.0  # [N] net-force noise rms above which the force rows next to a command step are scored
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
