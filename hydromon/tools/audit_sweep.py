@@ -1,6 +1,6 @@
 """The audit's sweep: every effect on every input profile, health band and noise level.
 
-``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]`` prints the
+``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick] [--only NAME]`` prints the
 tables of ``docs/audit.md``. Every record is 20 s at 100 Hz from ``plant_sim``; its seed is
 ``BASE[seeds] + its index`` in the fixed list below (the ``tune`` seeds were used to set the
 audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen):
@@ -137,10 +137,12 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--quick", action="store_true", help="every 7th record only (a smoke run)")
     ap.add_argument("--verbose", action="store_true", help="print every record as it is audited")
+    ap.add_argument("--only", default=None, help="only the records of this effect, or of this kind (clean, pair, outside)")
     args = ap.parse_args(argv)
     cases = _cases()
     base = BASE[args.seeds] if args.seed_base is None else args.seed_base
-    todo = [(i, c, base + i) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
+    todo = [(i, c, base + i) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
+            and (args.only is None or args.only == c[0] or args.only in c[1])]
     t0 = time.perf_counter()
     results = {}
     pool = ProcessPoolExecutor(args.jobs) if args.jobs > 1 else None

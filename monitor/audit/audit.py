@@ -210,12 +210,23 @@ class AuditResult:
         return out
 
 
-def _mse_split(fit: Fit, split: int) -> tuple[dict, dict]:
-    """Residual variance per block on the training and the held-out part."""
+def _floors(fit: Fit, split: int) -> tuple[dict, dict]:
+    """The nominal fit's resolution per block on the training and the held-out part: every
+    model is compared above it (a model whose regressor noise differs must not win by that)."""
     tr, te = {}, {}
     for g in BLOCKS:
         rows = fit.blocks[g].rows
-        tr[g], te[g] = fit.mse(g, rows < split), fit.mse(g, rows >= split)
+        tr[g], te[g] = fit.floor(g, rows < split), fit.floor(g, rows >= split)
+    return tr, te
+
+
+def _mse_split(fit: Fit, split: int, floors: tuple[dict, dict] | None = None) -> tuple[dict, dict]:
+    """Residual variance per block on the training and the held-out part (above ``floors``)."""
+    tr, te = {}, {}
+    for g in BLOCKS:
+        rows = fit.blocks[g].rows
+        f_tr, f_te = (floors[0][g], floors[1][g]) if floors else (0.0, 0.0)
+        tr[g], te[g] = fit.mse(g, rows < split, f_tr), fit.mse(g, rows >= split, f_te)
     return tr, te
 
 
@@ -274,7 +285,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     nominal = fit_blocks(build_blocks(sig, cfg, Spec()), split, cfg.h, cache)
     p_nom = nominal_params(nominal)
     theta0 = max(p_nom["CdW_sqrt_rho"], 1e-6)
-    nom_tr, nom_te = _mse_split(nominal, split)
+    floors = _floors(nominal, split)
+    nom_tr, nom_te = _mse_split(nominal, split, floors)
     test = slice(split, sig.n)
     measured = s[:, 1:]
     # a nominal fit with impossible estimates proves nothing by equation error alone: an
@@ -306,7 +318,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                     break
                 u0, u1, h0 = u1, u1 - h1 * (u1 - u0) / (h1 - h0), h1
                 u1 = min(max(u1, u0 - 1.0), u0 + 1.0)
-        tr, _ = _mse_split(fit, split)
+        tr, _ = _mse_split(fit, split, floors)
         # an unphysical fit (a friction dip, not a hump) ranks below every physical one
         return (cand.admissible(fit.theta), _log_ratio(nom_tr, tr)), value, fit
 
@@ -340,7 +352,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         if best is None:
             continue
         (physical, _), value, fit = best
-        tr, te = _mse_split(fit, split)
+        tr, te = _mse_split(fit, split, floors)
         score = _log_ratio(nom_te, te) - opt.penalty * cand.n_extra
         if _log_ratio(nom_tr, tr) <= 0 or not physical:
             score = min(score, 0.0)  # no better on the data it was fitted to (noise), or unphysical
@@ -392,8 +404,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             f = fit_blocks(build_blocks(sig, cfg, spec, theta0), split, cfg.h, cache)
         except ValueError:
             return None
-        tr1, te1 = _mse_split(f1, split)
-        tr, te = _mse_split(f, split)
+        tr1, te1 = _mse_split(f1, split, floors)
+        tr, te = _mse_split(f, split, floors)
         ok = _log_ratio(tr1, tr) > 0 and c2.admissible(f.theta)
         eff = {**c1.effects(v1, f.theta), **c2.effects(v2, f.theta)}
         return (_log_ratio(te1, te) - opt.penalty * c2.n_extra if ok else 0.0), f, eff
