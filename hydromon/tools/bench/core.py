@@ -176,9 +176,8 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
     and only the ``monitor_core`` path is measured.
 
     Two paths over the same ``hydromon sim --to-mcap``-style recording of ``n_rigs`` rigs:
-    ``monitor_core`` (the headline): :func:`hydromon.store.mcap_read.read_recording` into
-    ``hydromon.engine.core.MonitorCore.process`` in chunks of 4096 messages, the path of
-    ``hydromon replay --direct`` (edge validation, seq checks, Fleet.update, health payloads);
+    ``monitor_core`` (the headline): :func:`hydromon.store.replay.replay_direct`, the path of
+    ``hydromon replay --direct`` (reading, edge validation, seq checks, Fleet.update, health payloads);
     ``pydantic``: ``Sample.model_validate_json`` per message into ``Fleet.update`` (no health
     payloads), used as the headline when there is no monitor node.
     """
@@ -229,15 +228,10 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
     except ImportError:
         MonitorCore = None
     if MonitorCore is not None:
+        from hydromon.store.replay import replay_direct
+
         def core_pass():
-            core = MonitorCore()
-            batch = []
-            for key, payload, _, _ in read_recording(io.BytesIO(data)):
-                batch.append((key, payload))
-                if len(batch) == chunk:
-                    core.process(batch)
-                    batch = []
-            core.process(batch)
+            _, core = replay_direct(io.BytesIO(data))  # hydromon replay --direct's path, its batching
             if core.counters.accepted != n_samples:
                 raise RuntimeError(f"replay accepted {core.counters.accepted} samples, expected {n_samples}")
 

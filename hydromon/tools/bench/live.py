@@ -33,7 +33,7 @@ def shard_ids(n_rigs: int, monitors: int) -> list[str]:
 class _HealthDrain:
     """Every health message at the probe, taken from a FIFO channel by a thread that stamps each
     with the clock when it takes it (after its arrival: a latency is over-stated by at most the
-    thread's 0.5 ms nap and its turn for the GIL, never under-stated). A Python callback per
+    thread's 1 ms nap and its turn for the GIL, never under-stated). A Python callback per
     message, a GIL hand-over each, made the probe the bottleneck at 1500 rigs (the monitor's
     puts blocked behind it)."""
 
@@ -53,7 +53,7 @@ class _HealthDrain:
         while True:
             while (m := take()) is not None:
                 append((clock(), m.payload.to_bytes(), str(m.key_expr)))
-            if self.stop.wait(0.0005):
+            if self.stop.wait(0.001):
                 break
 
     def close(self) -> None:
