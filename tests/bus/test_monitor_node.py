@@ -319,6 +319,19 @@ def test_rig_keys_declares_each_rigs_sample_health_and_event_key_once_and_undecl
     assert not keys.off
 
 
+def test_rig_keys_declares_a_fleet_starting_at_once_over_several_calls():
+    from hydromon.bus.rig_keys import RigKeys
+
+    session, core = _KeySession(), _core_with(["a", "b", "c"])
+    keys = RigKeys(session, NS, per_sync=2)
+    keys.sync(core)
+    assert sorted(keys.rigs) == ["a", "b"] and len(session.declared) == 6
+    keys.sync(core)
+    assert sorted(keys.rigs) == ["a", "b", "c"] and len(session.declared) == 9
+    keys.sync(core)
+    assert len(session.declared) == 9
+
+
 def test_rig_keys_gives_up_beyond_its_rig_limit_and_on_a_flood_of_rejects():
     from hydromon.bus.rig_keys import RigKeys
 
