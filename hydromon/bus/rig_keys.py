@@ -15,7 +15,7 @@ log = logging.getLogger("hydromon.bus.monitor")  # the node's log: these lines a
 
 
 class RigKeys:
-    """The sample (and a framing rig's frame), health and event keys of the monitor's rigs, declared on its
+    """The sample (a framing rig's: frame), health and event keys of the monitor's rigs, declared on its
     session (``session.declare_keyexpr``), so that zenoh routes them from a cache.
 
     zenoh keeps a routing-table resource, with its routes computed once, for each declared key
@@ -42,7 +42,7 @@ class RigKeys:
         self.session, self.namespace = session, namespace
         self.per_sync = int(per_sync)  # most rigs declared a call: a fleet starting at once is spread over batches
         self.max_rigs, self.max_rejects = int(max_rigs), int(max_rejects)
-        self.rigs: dict[str, tuple] = {}        # rig id -> (sample KeyExpr, health KeyExpr[, frame KeyExpr])
+        self.rigs: dict[str, tuple] = {}        # rig id -> (sample or frame KeyExpr, health KeyExpr, event KeyExpr)
         self.health: dict[str, object] = {}     # health key -> its declared KeyExpr
         self.events: dict[str, object] = {}     # event key -> its declared KeyExpr
         self.off = False
@@ -65,9 +65,10 @@ class RigKeys:
                     break
                 budget -= 1
                 hkey, ekey = health_key(rig_id, self.namespace), event_key(rig_id, self.namespace)
-                # the key its samples come on (a rig that sent frames: its frame key as well)
-                kes = self.rigs[rig_id] = (declare(sample_key(rig_id, self.namespace)), declare(hkey), declare(ekey)) + \
-                    ((declare(frame_key(rig_id, self.namespace)),) if core.sends_frames(rig_id) else ())
+                # the key its samples come on: its frame key if it sends frames, else its sample key
+                # (each declaration costs a walk over the others: not both)
+                skey = (frame_key if core.sends_frames(rig_id) else sample_key)(rig_id, self.namespace)
+                kes = self.rigs[rig_id] = (declare(skey), declare(hkey), declare(ekey))
                 self.health[hkey], self.events[ekey] = kes[1], kes[2]
 
     def forget(self, rig_ids) -> None:
