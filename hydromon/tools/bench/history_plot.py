@@ -73,10 +73,16 @@ def history_figure(runs: list[dict]):
     ax_t.set_title("hydromon bench history: throughput")
     ax_t.legend(fontsize=8, ncol=2, loc="lower right")
 
-    live = [_num((r.get("live") or {}).get("rigs")) for r in runs]
+    # one monitor's runs and sharded runs (hydromon bench --monitors K) are separate series
+    sharded = [((r.get("live") or {}).get("monitors") or 1) > 1 for r in runs]
+    all_live = [_num((r.get("live") or {}).get("rigs")) for r in runs]
+    live = [None if k else v for v, k in zip(all_live, sharded)]
     ceiling = [_num(r.get("transport_ceiling")) for r in runs]
     ceiling_rigs = [None if c is None else c / SAMPLE_RATE for c in ceiling]
-    points(ax_l, live, "live rigs (no loss, p99 < 50 ms; frames when the run had them)", "C3")
+    points(ax_l, live, "live rigs, one monitor (no loss, p99 < 50 ms; frames when the run had them)", "C3")
+    if any(sharded):
+        points(ax_l, [v if k else None for v, k in zip(all_live, sharded)], "live rigs, monitors sharded by --rigs",
+               "C8", "D")
     points(ax_l, [_num((r.get("live_samples") or {}).get("rigs")) for r in runs], "live_samples rigs", "C6", "^")
     ax_l.axhline(LIVE_FRAMED_TARGET_RIGS, color="C3", ls=":", lw=1)
     points(ax_l, ceiling_rigs, "transport ceiling / 100 Hz", "C4", "s")
