@@ -28,6 +28,7 @@ __all__ = ["FrameBatch"]
 
 _COLUMNS = tuple(attrgetter(name) for name in SAMPLE_COLUMNS)  # t, ug, x1, x3, x4, x5
 _SEQ, _U, _ROW = attrgetter("seq"), attrgetter("u"), attrgetter("row")
+_TAKEN = frozenset(("sample", "frame", "config"))  # the leaves whose messages change a rig's state
 
 
 def _struct(payload: bytes):
@@ -54,13 +55,14 @@ class FrameBatch:
         rigs = [get(rest[j][1]) for j in cand]
         rows = np.fromiter(map(_ROW, rigs), np.int64, len(rigs))
         slow = np.zeros(len(self._last), dtype=np.bool_)
-        # a rig with any other message in the batch (a sample, a config) goes one by one
+        # a rig with another message in the batch that the core takes (a sample, a config, a frame on a
+        # key not yet known) goes one by one; health and events (a recording holds them) are ignored
         if len(cand) < len(rest):
             picked = set(cand)
             for j, (_, key, _) in enumerate(rest):
                 if j not in picked:
                     parsed = parse_rig_key(key, self.namespace)
-                    if parsed is not None and parsed[0] in self.rigs:
+                    if parsed is not None and parsed[1] in _TAKEN and parsed[0] in self.rigs:
                         slow[self.rigs[parsed[0]].row] = True
         ok = np.array([f is not None and f.u is None for f in structs], dtype=np.bool_)
         if not ok.all():
