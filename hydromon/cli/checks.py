@@ -35,6 +35,22 @@ def at_least(option: str, value: int | None, low: int) -> None:
         raise ValueError(f"{option} {value!r} must be >= {low}")
 
 
+def port(option: str, value: int | None) -> None:
+    """A TCP port option (None = not given) must be 0..65535 (0: a free one)."""
+    if value is not None and not 0 <= value <= 65535:
+        raise ValueError(f"{option} {value!r} must be 0..65535")
+
+
+def rigs_pattern(option: str, value: str) -> str:
+    """A rig-id key-expression chunk (``hydromon.bus.monitor.rig_pattern``), as zenoh spells it."""
+    from hydromon.bus.monitor import rig_pattern
+
+    try:
+        return rig_pattern(value)
+    except ValueError as exc:
+        raise ValueError(f"{option}: {exc}") from None
+
+
 def fits_on_disk(option: str, path: str | os.PathLike, nbytes: float, what: str) -> None:
     """``nbytes`` (an estimate of what is to be written) fit in the free space of ``path``'s
     file system; a refusal says both figures. Writing beside the target and renaming needs the

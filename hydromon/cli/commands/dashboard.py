@@ -49,7 +49,6 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from hydromon.bus.monitor import rig_pattern
     from hydromon.cli import checks
     from hydromon.cli.ranges import ranges_from_args
     from hydromon.contract import check_namespace
@@ -57,14 +56,10 @@ def run(args) -> int:
 
     checks.positive("--wait", args.wait)
     checks.positive("--duration", args.duration)
-    for name, port in (("--port", args.port), ("--foxglove-port", args.foxglove_port)):
-        if port is not None and not 0 <= port <= 65535:
-            raise ValueError(f"{name} {port!r} must be 0..65535")
+    checks.port("--port", args.port)
+    checks.port("--foxglove-port", args.foxglove_port)
     check_namespace(args.namespace)
-    try:
-        chunk = rig_pattern(args.rigs)
-    except ValueError as exc:
-        raise ValueError(f"--rigs: {exc}") from None
+    chunk = checks.rigs_pattern("--rigs", args.rigs)
     fallback = ranges_from_args(args)
     if args.recording:
         if args.events_file or args.state_dir:

@@ -73,9 +73,8 @@ def run(args) -> int:
         from hydromon.bus.session import load_config_file
 
         load_config_file(args.zenoh_config)  # a bad file: one line, before the kernels load
-    for name, port in (("--dashboard-port", args.dashboard_port), ("--foxglove-port", args.foxglove_port)):
-        if port is not None and not 0 <= port <= 65535:
-            raise ValueError(f"{name} {port!r} must be 0..65535")
+    checks.port("--dashboard-port", args.dashboard_port)
+    checks.port("--foxglove-port", args.foxglove_port)
     if args.no_dashboard and args.foxglove_port is not None:
         raise ValueError("--foxglove-port is served beside the dashboard; drop --no-dashboard")
     spec = load_fleet(args.fleet) if args.fleet else default_fleet()

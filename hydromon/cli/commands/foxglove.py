@@ -34,20 +34,15 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from hydromon.bus.monitor import rig_pattern
     from hydromon.cli import checks
     from hydromon.cli.ranges import ranges_from_args
     from hydromon.contract import check_namespace
     from hydromon.dashboard.service import open_live
 
     checks.positive("--duration", args.duration)
-    if not 0 <= args.port <= 65535:
-        raise ValueError(f"--port {args.port!r} must be 0..65535")
+    checks.port("--port", args.port)
     check_namespace(args.namespace)
-    try:
-        chunk = rig_pattern(args.rigs)
-    except ValueError as exc:
-        raise ValueError(f"--rigs: {exc}") from None
+    chunk = checks.rigs_pattern("--rigs", args.rigs)
     fallback = ranges_from_args(args)
     node = session_from_args(args)  # closed with its connectivity log
     session = node.session

@@ -76,7 +76,7 @@ def run(args) -> int:
     from hydromon.contract import liveliness_key
     from hydromon.engine.core import MonitorCore
     from hydromon.engine.watches import RateLimitedLog
-    from hydromon.bus.monitor import log_rig_warning, rig_pattern, run_monitor
+    from hydromon.bus.monitor import log_rig_warning, run_monitor
     from hydromon.bus.failover import group_name
     from hydromon.contract import valid_rig_id
     from hydromon.store.ranges_dir import RangesDir
@@ -94,10 +94,7 @@ def run(args) -> int:
             raise ValueError(f"--forget-after {args.forget_after:g} s must be longer than --stale-after "
                              f"{args.stale_after:g} s (a rig is stale before it is forgotten)")
     liveliness_key(args.node, args.namespace)  # the node name and the namespace
-    try:
-        rig_pattern(args.rigs)
-    except ValueError as exc:
-        raise ValueError(f"--rigs: {exc}") from None
+    checks.rigs_pattern("--rigs", args.rigs)
     ranges = ranges_from_args(args)  # a bad file fails here, before the bus
     ranges_dir = RangesDir(args.ranges_dir) if args.ranges_dir is not None else None
     checks.positive("--checkpoint-every", args.checkpoint_every)

@@ -51,7 +51,6 @@ def run(args) -> int:
     import orjson
     import zenoh
 
-    from hydromon.bus.monitor import rig_pattern
     from hydromon.cli import checks
     from hydromon.contract import check_namespace
     from hydromon.engine.board import Board
@@ -65,10 +64,7 @@ def run(args) -> int:
     if args.once and args.duration is not None:
         raise ValueError("--duration has no effect with --once (which waits --wait seconds for answers)")
     check_namespace(args.namespace)
-    try:
-        chunk = rig_pattern(args.rigs)
-    except ValueError as exc:
-        raise ValueError(f"--rigs: {exc}") from None
+    chunk = checks.rigs_pattern("--rigs", args.rigs)
     key = f"{args.namespace}/rig/{chunk}/health"
     top = args.top or None
     board = Board(ns=args.namespace)
