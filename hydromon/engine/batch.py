@@ -44,6 +44,25 @@ class RegularBatch:
         np.add.at(self._n, rows, 1)
         self.counters.accepted += len(seqs)
 
+    def _out_of_turn(self, rows: np.ndarray, seqs: np.ndarray, n=1) -> np.ndarray:
+        """By row, the rigs a batch cannot take at once: those whose runs (``rows``, first
+        ``seqs``, ``n`` samples each, in arrival order) do not each start one past the rig's
+        previous sample (the one before in the batch, or the last taken), or that have anything
+        pending (a gap being counted out, bad input to report, a seq far ahead, samples held)."""
+        order = np.argsort(rows, kind="stable")
+        r_s, s_s = rows[order], seqs[order]
+        first = np.ones(len(r_s), dtype=np.bool_)
+        first[1:] = r_s[1:] != r_s[:-1]
+        want = np.empty_like(s_s)
+        want[1:] = s_s[:-1] + (n[order][:-1] if isinstance(n, np.ndarray) else n)
+        last = self._last[r_s[first]]
+        want[first] = last + 1
+        irregular = s_s != want
+        irregular[first] |= last < 0
+        out = (self._gap >= 0) | self._bad | (self._back_n > 0) | self._holding
+        out[r_s[irregular]] = True
+        return out
+
     def _regular(self, messages: list) -> list:
         """Take the samples that need no per-message care at once; return the rest, in order,
         as (message index, key, payload).
@@ -88,17 +107,7 @@ class RegularBatch:
                 parsed = parse_rig_key(key, self.namespace)
                 if parsed is not None and parsed[1] in ("config", "frame") and parsed[0] in self.rigs:
                     slow[self.rigs[parsed[0]].row] = True
-        # seq one past the previous one of the same rig (in the batch, or the last taken)
-        order = np.argsort(rows, kind="stable")
-        r_s, s_s = rows[order], seqs[order]
-        first = np.ones(len(r_s), dtype=np.bool_)
-        first[1:] = r_s[1:] != r_s[:-1]
-        prev = np.empty_like(s_s)
-        prev[1:] = s_s[:-1]
-        prev[first] = self._last[r_s[first]]
-        irregular = (s_s != prev + 1) | (prev < 0)
-        slow[r_s[irregular]] = True
-        slow |= (self._gap >= 0) | self._bad | (self._back_n > 0) | self._holding
+        slow |= self._out_of_turn(rows, seqs)
         keep = ~slow[rows]
         index = np.arange(len(messages)) if pick is None else np.asarray(pick)  # message of each candidate
         if keep.all():

@@ -27,7 +27,7 @@ from hydromon.engine.validate import VALUE_LIMITS
 __all__ = ["FrameBatch"]
 
 _COLUMNS = tuple(attrgetter(name) for name in SAMPLE_COLUMNS)  # t, ug, x1, x3, x4, x5
-_SEQ, _U, _ROW = attrgetter("seq"), attrgetter("u"), attrgetter("row")
+_SEQ, _ROW = attrgetter("seq"), attrgetter("row")
 _TAKEN = frozenset(("sample", "frame", "config"))  # the leaves whose messages change a rig's state
 
 
@@ -83,7 +83,7 @@ class FrameBatch:
             good = [f for f, keep in zip(good, fine.tolist()) if keep]
             k_good, n, seqs = k_good[fine], n[fine], seqs[fine]
             if not good:
-                return self._rest(rest, cand, slow, rows, k_good, n, seqs, None, None)
+                return self._rest(rest, cand, slow, rows, k_good, n, seqs, None)
         total = int(n.sum())
         vals = np.empty((total, 6))
         for c, col in enumerate(_COLUMNS):
@@ -94,26 +94,15 @@ class FrameBatch:
         bad_frame = np.bincount(frame_of, weights=bad, minlength=len(good)) > 0
         if bad_frame.any():
             slow[rows[k_good[bad_frame]]] = True
-        return self._rest(rest, cand, slow, rows, k_good, n, seqs, vals, frame_of)
+        return self._rest(rest, cand, slow, rows, k_good, n, seqs, vals)
 
-    def _rest(self, rest, cand, slow, rows, k_good, n, seqs, vals, frame_of) -> list:
+    def _rest(self, rest, cand, slow, rows, k_good, n, seqs, vals) -> list:
         """Queue the frames ``k_good`` (indices into ``cand``; ``n`` samples from ``seqs`` each,
-        their samples' ``vals`` t..x5 and frame index ``frame_of``) of rigs not ``slow`` whose seqs
+        their samples' ``vals`` t..x5) of rigs not ``slow`` whose seqs
         follow on; return the messages not taken."""
         if len(k_good):
             r_g = rows[k_good]
-            order = np.argsort(r_g, kind="stable")
-            r_s, s_s, n_s = r_g[order], seqs[order], n[order]
-            first = np.ones(len(r_s), dtype=np.bool_)
-            first[1:] = r_s[1:] != r_s[:-1]
-            want = np.empty_like(s_s)
-            want[1:] = s_s[:-1] + n_s[:-1]
-            last = self._last[r_s[first]]
-            want[first] = last + 1
-            irregular = s_s != want
-            irregular[first] |= last < 0
-            slow[r_s[irregular]] = True
-            slow |= (self._gap >= 0) | self._bad | (self._back_n > 0) | self._holding
+            slow |= self._out_of_turn(r_g, seqs, n)  # RegularBatch's rule, for runs of n samples
             keep = ~slow[r_g]
         else:
             keep = np.zeros(0, dtype=np.bool_)
