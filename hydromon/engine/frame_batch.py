@@ -27,7 +27,7 @@ from hydromon.engine.validate import VALUE_LIMITS
 __all__ = ["FrameBatch"]
 
 _COLUMNS = tuple(attrgetter(name) for name in SAMPLE_COLUMNS)  # t, ug, x1, x3, x4, x5
-_SEQ, _ROW = attrgetter("seq"), attrgetter("row")
+_SEQ = attrgetter("seq")
 _TAKEN = frozenset(("sample", "frame", "config"))  # the leaves whose messages change a rig's state
 
 
@@ -48,12 +48,12 @@ class FrameBatch:
         """Take the regular frames of ``rest`` (``(message index, key, payload)`` in order, what the
         sample pass left) at once; return the other messages, in order."""
         get = self._frame_rigs.get
-        cand = [j for j, (_, key, _) in enumerate(rest) if get(key) is not None]
-        if len(cand) < 2:
+        found = [(j, rig) for j, (_, key, _) in enumerate(rest) if (rig := get(key)) is not None]
+        if len(found) < 2:
             return rest
+        cand = [j for j, _ in found]
         structs = [_struct(rest[j][2]) for j in cand]
-        rigs = [get(rest[j][1]) for j in cand]
-        rows = np.fromiter(map(_ROW, rigs), np.int64, len(rigs))
+        rows = np.fromiter((rig.row for _, rig in found), np.int64, len(found))
         slow = np.zeros(len(self._last), dtype=np.bool_)
         # a rig with another message in the batch that the core takes (a sample, a config, a frame on a
         # key not yet known) goes one by one; health and events (a recording holds them) are ignored
