@@ -77,6 +77,20 @@ def test_nested_contexts_across_threads_restore_only_at_the_last_exit():
     assert gc.isenabled() and gc.get_freeze_count() == 0
 
 
+def test_garbage_from_before_entry_is_collected_after_exit():
+    # entry freezes without collecting: a cycle that was garbage already must come back to the collector
+    gc.collect()
+    node = _Node()
+    node.me = node
+    ref = weakref.ref(node)
+    del node
+    with QuietGC():
+        gc.collect()
+        assert ref() is not None  # frozen with everything alive on entry
+    gc.collect()
+    assert ref() is None
+
+
 def test_a_disabled_collector_stays_disabled():
     gc.disable()
     try:
