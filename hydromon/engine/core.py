@@ -355,6 +355,11 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput):
         """Consume messages ``(key, payload bytes)`` in order; return the health messages
         ``(key, JSON bytes)`` they produce, in the order of the samples that ended their windows
         (what taking every message one by one gives). Never raises on bad input."""
+        return [(key, payload) for _, key, payload in self.process_indexed(messages)]
+
+    def process_indexed(self, messages: Iterable[tuple[str, bytes]]) -> list[tuple[int, str, bytes]]:
+        """:meth:`process`, each health message with the index in ``messages`` of the message whose
+        sample ended its window: ``(index, key, JSON bytes)``, indices never decreasing."""
         out: list = []  # (message index, key, payload)
         messages = messages if isinstance(messages, list) else list(messages)
         if messages:
@@ -367,4 +372,4 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput):
                     self._one(key, payload, out)
         self._flush(out)
         out.sort(key=_FIRST)  # the regular samples were taken first: back into arrival order
-        return [(key, payload) for _, key, payload in out]
+        return out

@@ -19,7 +19,7 @@ import orjson
 
 from hydromon.contract import GRADES, UNKNOWN, RigConfig, event_key
 from hydromon.engine.events import Announcer, event_payload
-from hydromon.engine.health_json import health_payloads
+from hydromon.engine.health_json import HealthWriter
 from hydromon.engine.ranges_book import RangesBook
 from hydromon.engine.status import health_status
 from hydromon.engine.words import why_words
@@ -66,6 +66,7 @@ class Verdicts:
         self.node, self.epoch = node, epoch
         self.on_warning = on_warning
         self.announcer = Announcer()
+        self._writer = HealthWriter()
         self.events: list[tuple[str, bytes]] = []   # announced, not yet taken
         self._ranges: dict[int, Ranges | None] = {}  # by row: the ranges in force
         self._event_keys: dict[int, str] = {}
@@ -107,9 +108,9 @@ class Verdicts:
                                   r in self.commissioning)
                     for r, level, conv, bad, st in zip(rows, levels, ev.converged.tolist(), bad_input, flagged)]
         fleet = self.fleet
-        payloads = health_payloads(seqs, t, ev.level, ev.confidence, ev.params, ev.std_errors, ev.grades, statuses,
-                                   [fleet.graded(r) for r in rows], [fleet.ranges_tag(r) for r in rows],
-                                   self.node, self.epoch)
+        payloads = self._writer.payloads(seqs, t, ev.level, ev.confidence, ev.params, ev.std_errors, ev.grades,
+                                         statuses, [fleet.graded(r) for r in rows],
+                                         [fleet.ranges_tag(r) for r in rows], self.node, self.epoch)
         observe = self.announcer.observe
         for j, (r, level, status) in enumerate(zip(rows, levels, statuses)):
             change = observe(r, level, status)

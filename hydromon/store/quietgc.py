@@ -13,10 +13,13 @@ A direct replay is faster without automatic collection too: a batch's health pay
 thousands of new containers, each allocation past the threshold a collection (measured at 10
 rigs, 60 s of frames: health building 1.29 us a sample with automatic collection, 0.95 without).
 
-Nothing is collected on entry: everything alive then, garbage cycles included, is frozen and
-given back to the collector on exit (a full collection in a process with numba loaded takes
-about 85 ms: on entry it halved ``replay --direct`` of 60 s of 10 rigs' frames, 160,000 against
-300,000-350,000 samples/s). The survivors of each full collection are frozen too, so the next full collection looks only
+On entry everything is collected, then what survives is frozen. ``collect_first=False`` freezes
+without collecting: garbage cycles alive then stay until exit, when they go back to the
+collector. That is for a loop with no finalizer to wait for (a direct replay: a full collection
+with numba loaded takes about 85 ms, which halved ``replay --direct`` of 60 s of 10 rigs' frames,
+160,000 against 300,000-350,000 samples/s); a node must collect first (the monitor node's
+health under bad input differed without it: ``tests/bus/test_bad_input_bus.py``). The
+survivors of each full collection are frozen too, so the next full collection looks only
 at what was allocated since. What a loop loads after entry (numba dispatchers, zenoh objects:
 57,000 objects in the sim at 750 rigs) made the full collection 30 s in take 14-38 ms, a stall
 of every rig's samples that showed as late health every 30 s in the live bench (seconds 26 and
@@ -44,13 +47,14 @@ class QuietGC:
     last exit restores it."""
 
     def __init__(self, young_s: float = 0.1, full_s: float = 30.0, clock=time.monotonic,
-                 first_full_s: float = 2.0):
+                 first_full_s: float = 2.0, collect_first: bool = True):
         if not (0 < young_s <= full_s):
             raise ValueError(f"need 0 < young_s <= full_s, got {young_s}, {full_s}")
         if not 0 < first_full_s <= full_s:
             raise ValueError(f"need 0 < first_full_s <= full_s, got {first_full_s}, {full_s}")
         self.young_s, self.full_s, self.clock = float(young_s), float(full_s), clock
         self.first_full_s = float(first_full_s)
+        self.collect_first = collect_first
         self.collections = 0
 
     def __enter__(self) -> QuietGC:
@@ -58,7 +62,9 @@ class QuietGC:
         with _lock:
             if _depth == 0:
                 _was_enabled = gc.isenabled()
-                gc.freeze()  # no collection first: in a process with numba loaded, a full one takes 85 ms
+                if self.collect_first:
+                    gc.collect()
+                gc.freeze()
                 gc.disable()
             _depth += 1
         now = self.clock()

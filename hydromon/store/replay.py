@@ -31,7 +31,7 @@ from hydromon.store.quietgc import QuietGC
 
 __all__ = ["KeyFilter", "recording_span", "recording_topics", "window", "read_window", "iter_window",
            "replay_direct", "health_jsonl", "NothingToReplay", "check_window", "window_problem", "sample_namespaces",
-           "nothing_graded"]
+           "nothing_graded", "graded"]
 
 log = logging.getLogger(__name__)
 
@@ -213,23 +213,35 @@ def replay_direct(src, *, keys: Iterable[str] | None = None, start: float | None
     a batch with all the others and taking the per-message path). Garbage is collected between
     batches (``hydromon.store.quietgc``). Returns ``(health, core)``: the health messages
     ``[(key, payload bytes)]`` in order, and the core (counters, latest health per rig).
+    ``hydromon.store.replay_jobs`` splits the rigs between processes.
     """
     from hydromon.engine.core import MonitorCore
 
     core = core or MonitorCore(namespace)
-    health: list[tuple[str, bytes]] = []
+    messages = ((key, payload) for key, payload, _ in iter_window(src, keys=keys, start=start, duration=duration))
+    health = graded(core, enumerate(messages), batch, batch_bytes)
+    return [(key, payload) for _, key, payload in health], core
+
+
+def graded(core, messages: Iterable[tuple[int, tuple[str, bytes]]], batch: int = 1000,
+           batch_bytes: int = 256 * 1024) -> list[tuple[int, str, bytes]]:
+    """The health of ``messages`` ``(index, (key, payload))`` through ``core``, in batches (see
+    :func:`replay_direct`): ``(index of the message that ended the window, key, payload)`` in order."""
+    health: list[tuple[int, str, bytes]] = []
     buf: list[tuple[str, bytes]] = []
+    index: list[int] = []
     size = 0
-    with QuietGC() as quiet:
-        for key, payload, _ in iter_window(src, keys=keys, start=start, duration=duration):
-            buf.append((key, payload))
-            size += len(payload)
+    with QuietGC(collect_first=False) as quiet:
+        for g, message in messages:
+            buf.append(message)
+            index.append(g)
+            size += len(message[1])
             if len(buf) >= batch or size >= batch_bytes:
-                health += core.process(buf)
-                buf, size = [], 0
+                health += [(index[i], key, payload) for i, key, payload in core.process_indexed(buf)]
+                buf, index, size = [], [], 0
                 quiet.idle()
-        health += core.process(buf)
-    return health, core
+        health += [(index[i], key, payload) for i, key, payload in core.process_indexed(buf)]
+    return health
 
 
 def health_jsonl(health: Iterable[tuple[str, bytes]]) -> Iterator[bytes]:

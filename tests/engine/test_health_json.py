@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import orjson
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -61,3 +62,13 @@ def test_non_finite_numbers_are_left_out():
     assert d["level"] is None and d["grade"] == "unknown" and d["confidence"] == 0.0
     assert PARAM_NAMES[3] not in d["params"] and len(d["params"]) == P - 1
     assert d["std_errors"] == {PARAM_NAMES[0]: 0.1}
+
+
+def test_what_the_contract_never_holds_is_refused_not_written():
+    p = np.full((1, P), 2.5)
+    ok = dict(seqs=[7], t=np.array([0.07]), level=np.array([0]), confidence=np.array([0.5]), params=p,
+              std_errors=p, grades=np.zeros((1, P), np.int64), statuses=["ok"], graded=GRADED)
+    assert orjson.loads(health_payloads(**ok)[0])["seq"] == 7
+    for bad in (dict(seqs=[-1]), dict(level=np.array([5])), dict(grades=np.full((1, P), 9))):
+        with pytest.raises(ValueError, match="seqs must be >= 0"):
+            health_payloads(**{**ok, **bad})

@@ -77,18 +77,24 @@ def test_nested_contexts_across_threads_restore_only_at_the_last_exit():
     assert gc.isenabled() and gc.get_freeze_count() == 0
 
 
-def test_garbage_from_before_entry_is_collected_after_exit():
-    # entry freezes without collecting: a cycle that was garbage already must come back to the collector
+def test_without_collect_first_garbage_from_before_entry_is_collected_after_exit():
+    # the entry freezes without collecting: a cycle that was garbage already must come back to the collector
     gc.collect()
     node = _Node()
     node.me = node
     ref = weakref.ref(node)
     del node
-    with QuietGC():
+    with QuietGC(collect_first=False):
         gc.collect()
         assert ref() is not None  # frozen with everything alive on entry
     gc.collect()
     assert ref() is None
+    node = _Node()
+    node.me = node
+    ref = weakref.ref(node)
+    del node
+    with QuietGC():  # collect_first: gone on entry
+        assert ref() is None
 
 
 def test_a_disabled_collector_stays_disabled():

@@ -77,6 +77,9 @@ def print_table(res, stream=None) -> None:
     if res.replay_direct_framed is not None:
         t.add_row("replay_direct_framed", _fmt(res.replay_direct_framed), "samples/s",
                   f"the same recording as frames of {d.get('replay_direct_framed', {}).get('frame')}")
+    if res.replay_direct_framed_jobs is not None:
+        t.add_row("replay_direct_framed_jobs", _fmt(res.replay_direct_framed_jobs), "samples/s",
+                  f"the same in {d.get('replay_direct_framed', {}).get('jobs')} processes (replay --direct --jobs)")
     m = res.memory_per_rig
     t.add_row("memory_per_rig", _fmt(m["state_bytes"]), "bytes",
               f"state arrays; RSS growth {_fmt(m['rss_bytes'])} B/rig over {m['rigs']} rigs")

@@ -49,6 +49,9 @@ def add_arguments(parser) -> None:
                         help="no bus: run the monitor in-process over the recording as fast as possible and "
                         "print the health sequence as JSON lines (or write it to --out)")
     parser.add_argument("--out", metavar="FILE", help="with --direct: write the health JSON lines here")
+    parser.add_argument("--jobs", type=int, default=None, metavar="N",
+                        help="with --direct: grade in N processes, the rigs split between them; the same "
+                        "health, in the same order (default 1)")
     add_ranges_argument(parser, f"with --direct: {RANGES_HELP}; give the live monitor's to get its health "
                                 "byte for byte")
     add_memory_argument(parser, f"with --direct: {MEMORY_HELP} (default: none, a growing window, with which the "
@@ -74,12 +77,13 @@ def check_args(args) -> None:
                 raise ValueError(f"{opt} has no meaning with --direct")
         if args.out:
             checks.writable_file("--out", args.out)
+        checks.at_least("--jobs", args.jobs, 1)
     else:
         checks.non_negative("--rate", args.rate)
         checks.non_negative("--wait", args.wait, unit="s")
         if args.out:
             raise ValueError("--out goes with --direct (a bus replay publishes; record it with hydromon record)")
-        for opt, value in (("--ranges", args.ranges), ("--memory", args.memory)):
+        for opt, value in (("--ranges", args.ranges), ("--memory", args.memory), ("--jobs", args.jobs)):
             if value is not None:
                 raise ValueError(f"{opt} goes with --direct (a bus replay publishes samples; the monitor grades them)")
     check_memory(args)
@@ -89,13 +93,17 @@ def _direct(args) -> int:
     from hydromon.cli.checks import replace_on_success
     from hydromon.engine.watches import RateLimitedLog
     from hydromon.engine.core import MonitorCore
-    from hydromon.store.replay import NothingToReplay, check_window, health_jsonl, nothing_graded, replay_direct
+    from hydromon.store.replay import NothingToReplay, check_window, health_jsonl, nothing_graded
+    from hydromon.store.replay_jobs import replay_direct_jobs
 
     check_window(args.file, keys=args.keys, start=args.start, namespace=args.namespace)
-    core = MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges_from_args(args),
-                       options=options_from_args(args, MonitorCore.SAMPLE_RATE))
-    health, core = replay_direct(args.file, keys=args.keys, start=args.start, duration=args.duration,
-                                 namespace=args.namespace, core=core)
+    ranges, options = ranges_from_args(args), options_from_args(args, MonitorCore.SAMPLE_RATE)
+
+    def make_core():
+        return MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges, options=options)
+
+    health, core = replay_direct_jobs(args.file, jobs=args.jobs or 1, keys=args.keys, start=args.start,
+                                      duration=args.duration, namespace=args.namespace, make_core=make_core)
     why = nothing_graded(args.file, health, core.counters)
     if why:
         raise NothingToReplay(why)  # before --out: no empty health file

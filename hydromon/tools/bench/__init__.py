@@ -44,6 +44,8 @@ monitor_us_per_sample
     threads: zenoh's receive thread, decoding, the kernel, health).
 replay_direct_framed
     replay_direct of the same recording written as frames of N samples.
+replay_direct_framed_jobs
+    The same in one process per core (``replay --direct --jobs``), the rigs split between them.
 
 Every figure shares the machine with whatever else runs on it; the load average is recorded
 with each run (``machine.loadavg_1min*``, per live step ``loadavg_1min``).

@@ -169,11 +169,13 @@ def bench_memory(n_rigs: int = 10_000) -> dict:
 
 # -- replay -------------------------------------------------------------------------------------
 
-def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int = 3, frame: int | None = None) -> dict:
+def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int = 3, frame: int | None = None,
+                        jobs: int = 1) -> dict:
     """samples/s of a recording (in-memory MCAP) read, decoded, validated and graded.
 
     With ``frame`` N the recording holds frames of N samples (``hydromon sim --to-mcap --frame N``)
-    and only the ``monitor_core`` path is measured.
+    and only the ``monitor_core`` path is measured. With ``jobs`` > 1 it is measured in one
+    process and in ``jobs`` (``replay --direct --jobs``: ``jobs``, the rigs split between them).
 
     Two paths over the same ``hydromon sim --to-mcap``-style recording of ``n_rigs`` rigs:
     ``monitor_core`` (the headline): :func:`hydromon.store.replay.replay_direct`, the path of
@@ -228,14 +230,18 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
     except ImportError:
         MonitorCore = None
     if MonitorCore is not None:
-        from hydromon.store.replay import replay_direct
+        from hydromon.store.replay_jobs import replay_direct_jobs
 
-        def core_pass():
-            _, core = replay_direct(io.BytesIO(data))  # hydromon replay --direct's path, its batching
+        def core_pass(k=1):
+            # hydromon replay --direct's path, its batching
+            _, core = replay_direct_jobs(io.BytesIO(data), jobs=k)
             if core.counters.accepted != n_samples:
                 raise RuntimeError(f"replay accepted {core.counters.accepted} samples, expected {n_samples}")
 
         out["monitor_core"] = _median_rate(n_samples, core_pass, repeats)
+        if jobs > 1:
+            out["jobs"] = jobs
+            out["monitor_core_jobs"] = _median_rate(n_samples, lambda: core_pass(jobs), repeats)
     out["samples_per_s"] = out.get("monitor_core", out.get("pydantic"))
     out["via"] = "monitor_core" if "monitor_core" in out else "pydantic"
     return out

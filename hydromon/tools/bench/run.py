@@ -58,6 +58,7 @@ class BenchResult:
     kernel_us_per_sample: float | None = None   # the compiled pipeline alone, one thread [us]
     monitor_us_per_sample: float | None = None  # live's monitor CPU per sample [us] (the frames step-up)
     replay_direct_framed: float | None = None   # replay_direct of a recording of frames [samples/s]
+    replay_direct_framed_jobs: float | None = None  # the same in one process per core (replay --direct --jobs)
     live_samples: dict | None = None            # live's step-up with one message per sample
 
 
@@ -122,11 +123,12 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
     rd_kw = dict(n_rigs=2 if q else 10, duration=5.0 if q else 60.0, repeats=1 if q else 3)
     rd = bench_replay_direct(**rd_kw)
     details["replay_direct"] = rd
-    rdf = None
+    rdf = rdf_jobs = None
     if opts.frame is not None:
         _log(f"replay_direct of frames of {opts.frame}")
-        details["replay_direct_framed"] = bench_replay_direct(**rd_kw, frame=opts.frame)
+        details["replay_direct_framed"] = bench_replay_direct(**rd_kw, frame=opts.frame, jobs=threads)
         rdf = details["replay_direct_framed"]["samples_per_s"]
+        rdf_jobs = details["replay_direct_framed"].get("monitor_core_jobs")
 
     _log("memory_per_rig")
     mem = bench_memory(1000 if q else 10_000)
@@ -157,7 +159,7 @@ def run_bench(opts: BenchOptions = BenchOptions()) -> BenchResult:
         timestamp=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         machine={**machine_info(), "loadavg_1min_start": load_start},
         kernel_us_per_sample=1e6 / cb1, monitor_us_per_sample=(live or {}).get("monitor_us_per_sample"),
-        replay_direct_framed=rdf, live_samples=live_samples,
+        replay_direct_framed=rdf, replay_direct_framed_jobs=rdf_jobs, live_samples=live_samples,
     )
 
 
