@@ -16,7 +16,9 @@ process too: which rigs are admitted then depends on all of them.
 from __future__ import annotations
 
 import heapq
+import io
 import multiprocessing
+import os
 import traceback
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -71,6 +73,15 @@ def _owner(shards: dict[str, int]) -> Callable[[str], int]:
     return owner
 
 
+def _for_workers(src):
+    """What each worker can read on its own: a path, an in-memory stream (each forked worker has
+    its copy), or an open file's path (forked workers would share its offset); None otherwise."""
+    if isinstance(src, (str, os.PathLike, io.BytesIO)):
+        return src
+    name = getattr(src, "name", None)
+    return name if isinstance(name, (str, os.PathLike)) and os.path.isfile(name) else None
+
+
 def _work(k: int, shards: dict, src, window: dict, make_core, conn) -> None:
     """Worker ``k``: grade its rigs' messages; send ``("ok", health, counters, rigs, latest)``."""
     try:
@@ -89,8 +100,8 @@ def _work(k: int, shards: dict, src, window: dict, make_core, conn) -> None:
 def replay_direct_jobs(src, *, jobs: int, keys: Iterable[str] | None = None, start: float | None = None,
                        duration: float | None = None, namespace: str = DEFAULT_NAMESPACE,
                        make_core: Callable | None = None):
-    """:func:`~hydromon.store.replay.replay_direct` of ``src`` (a path, or a seekable file this
-    process holds) over ``jobs`` processes. ``make_core()`` makes each worker's MonitorCore (the
+    """:func:`~hydromon.store.replay.replay_direct` of ``src`` (a path, an in-memory stream, or an
+    open file with a path; any other stream runs in this process) over ``jobs`` processes. ``make_core()`` makes each worker's MonitorCore (the
     same way for all). Returns ``(health, result)``: the health ``[(key, payload)]`` in order,
     and a :class:`ReplayResult` (or, run in this process, the core). Raises RuntimeError when a
     worker fails or dies."""
@@ -102,8 +113,10 @@ def replay_direct_jobs(src, *, jobs: int, keys: Iterable[str] | None = None, sta
     window = dict(keys=keys, start=start, duration=duration)
     rigs = {parsed[0] for t in recording_topics(src) if (parsed := rig_topic(t)) is not None}
     jobs = min(jobs, len(rigs))
-    if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+    shared = _for_workers(src)
+    if jobs <= 1 or shared is None or "fork" not in multiprocessing.get_all_start_methods():
         return replay_direct(src, **window, namespace=namespace, core=make_core())
+    src = shared
     first = make_core()
     if len(rigs) > first.max_rigs:
         return replay_direct(src, **window, namespace=namespace, core=first)

@@ -66,6 +66,14 @@ def test_two_and_three_jobs_give_the_single_process_replay(mixed, window):
         assert res.rigs == set(core.rigs) and res.latest == core.latest
 
 
+def test_an_open_file_is_read_by_its_path_in_each_worker(mixed):
+    want = replay_direct(mixed)[0]
+    with open(mixed, "rb") as f:
+        assert replay_direct_jobs(f, jobs=2)[0] == want
+    got, core = replay_direct_jobs(io.BytesIO(mixed.read_bytes()), jobs=2)
+    assert got == want and not isinstance(core, MonitorCore)
+
+
 def test_one_job_runs_here_and_rigs_are_dealt_round_robin(mixed):
     health, core = replay_direct_jobs(mixed, jobs=1)
     assert isinstance(core, MonitorCore) and health == replay_direct(mixed)[0]
