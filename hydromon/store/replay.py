@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 import zenoh
 
@@ -31,7 +31,7 @@ from hydromon.store.quietgc import QuietGC
 
 __all__ = ["KeyFilter", "recording_span", "recording_topics", "window", "read_window", "iter_window",
            "replay_direct", "health_jsonl", "NothingToReplay", "check_window", "window_problem", "sample_namespaces",
-           "nothing_graded", "graded"]
+           "nothing_graded", "graded", "window_span", "ticking"]
 
 log = logging.getLogger(__name__)
 
@@ -203,7 +203,8 @@ def iter_window(src, *, keys: Iterable[str] | None = None, start: float | None =
 
 def replay_direct(src, *, keys: Iterable[str] | None = None, start: float | None = None,
                   duration: float | None = None, namespace: str = DEFAULT_NAMESPACE, core=None,
-                  batch: int = 1000, batch_bytes: int = 256 * 1024):
+                  batch: int = 1000, batch_bytes: int = 256 * 1024,
+                  progress: Callable[[float, float], None] | None = None):
     """Run a MonitorCore over the recording as fast as possible.
 
     Messages go to the core in batches of at most ``batch`` messages and about ``batch_bytes``
@@ -213,14 +214,38 @@ def replay_direct(src, *, keys: Iterable[str] | None = None, start: float | None
     a batch with all the others and taking the per-message path). Garbage is collected between
     batches (``hydromon.store.quietgc``). Returns ``(health, core)``: the health messages
     ``[(key, payload bytes)]`` in order, and the core (counters, latest health per rig).
-    ``hydromon.store.replay_jobs`` splits the rigs between processes.
+    ``progress(done_s, total_s)``, if given, is called now and then with the recording seconds
+    read of the window's. ``hydromon.store.replay_jobs`` splits the rigs between processes.
     """
     from hydromon.engine.core import MonitorCore
 
     core = core or MonitorCore(namespace)
-    messages = ((key, payload) for key, payload, _ in iter_window(src, keys=keys, start=start, duration=duration))
-    health = graded(core, enumerate(messages), batch, batch_bytes)
+    messages = iter_window(src, keys=keys, start=start, duration=duration)
+    if progress is not None:
+        messages = ticking(messages, *window_span(src, start, duration), progress)
+    health = graded(core, enumerate((key, payload) for key, payload, _ in messages), batch, batch_bytes)
     return [(key, payload) for _, key, payload in health], core
+
+
+def window_span(src, start: float | None, duration: float | None) -> tuple[int, float]:
+    """``(lo, total_s)``: the window's first log time [ns] and its length [s] (for progress)."""
+    first, last, _ = recording_span(src)
+    lo = first + round((start or 0.0) * 1e9)
+    end = last if duration is None else min(last, lo + round(duration * 1e9))
+    return lo, max(end - lo, 0) / 1e9
+
+
+def ticking(messages: Iterable[tuple[str, bytes, int]], lo: int, total_s: float,
+            progress: Callable[[float, float], None], every: int = 2000) -> Iterator[tuple[str, bytes, int]]:
+    """``messages`` ``(key, payload, log_ns)`` as they come, calling ``progress(done_s, total_s)``
+    every ``every`` messages and at the end (``done_s`` from ``lo`` [ns], at most ``total_s``)."""
+    n = 0
+    for m in messages:
+        yield m
+        n += 1
+        if n % every == 0:
+            progress(min(max(m[2] - lo, 0) / 1e9, total_s), total_s)
+    progress(total_s, total_s)
 
 
 def graded(core, messages: Iterable[tuple[int, tuple[str, bytes]]], batch: int = 1000,

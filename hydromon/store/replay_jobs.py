@@ -18,6 +18,7 @@ from __future__ import annotations
 import heapq
 import io
 import multiprocessing
+import multiprocessing.connection
 import os
 import traceback
 from collections.abc import Callable, Iterable
@@ -27,7 +28,7 @@ from operator import itemgetter
 from hydromon.contract import DEFAULT_NAMESPACE
 from hydromon.engine.counters import MonitorCounters
 from hydromon.store.mcap_layout import rig_topic
-from hydromon.store.replay import graded, iter_window, recording_topics, replay_direct
+from hydromon.store.replay import graded, iter_window, recording_topics, replay_direct, ticking, window_span
 
 __all__ = ["ReplayResult", "replay_direct_jobs", "shard_rigs"]
 
@@ -82,13 +83,19 @@ def _for_workers(src):
     return name if isinstance(name, (str, os.PathLike)) and os.path.isfile(name) else None
 
 
-def _work(k: int, shards: dict, src, window: dict, make_core, conn) -> None:
-    """Worker ``k``: grade its rigs' messages; send ``("ok", health, counters, rigs, latest)``."""
+def _work(k: int, shards: dict, src, window: dict, make_core, conn, done) -> None:
+    """Worker ``k``: grade its rigs' messages; send ``("ok", health, counters, rigs, latest)``;
+    the recording seconds it has read go into ``done[k]``."""
     try:
         core = make_core()
         owner = _owner(shards)
-        mine = ((g, (key, payload)) for g, (key, payload, _) in enumerate(iter_window(src, **window))
-                if owner(key) == k)
+
+        def progress(done_s, _total_s):
+            done[k] = done_s
+
+        messages = ticking(iter_window(src, **window), *window_span(src, window["start"], window["duration"]),
+                           progress)
+        mine = ((g, (key, payload)) for g, (key, payload, _) in enumerate(messages) if owner(key) == k)
         health = graded(core, mine)
         conn.send(("ok", health, core.counters, list(core.rigs), dict(core.latest)))
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises
@@ -99,12 +106,13 @@ def _work(k: int, shards: dict, src, window: dict, make_core, conn) -> None:
 
 def replay_direct_jobs(src, *, jobs: int, keys: Iterable[str] | None = None, start: float | None = None,
                        duration: float | None = None, namespace: str = DEFAULT_NAMESPACE,
-                       make_core: Callable | None = None):
+                       make_core: Callable | None = None, progress: Callable[[float, float], None] | None = None):
     """:func:`~hydromon.store.replay.replay_direct` of ``src`` (a path, an in-memory stream, or an
-    open file with a path; any other stream runs in this process) over ``jobs`` processes. ``make_core()`` makes each worker's MonitorCore (the
-    same way for all). Returns ``(health, result)``: the health ``[(key, payload)]`` in order,
-    and a :class:`ReplayResult` (or, run in this process, the core). Raises RuntimeError when a
-    worker fails or dies."""
+    open file with a path; any other stream runs in this process) over ``jobs`` processes.
+    ``make_core()`` makes each worker's MonitorCore (the same way for all); ``progress(done_s,
+    total_s)`` as in ``replay_direct``, of the slowest worker. Returns ``(health, result)``: the
+    health ``[(key, payload)]`` in order, and a :class:`ReplayResult` (or, run in this process,
+    the core). Raises RuntimeError when a worker fails or dies."""
     from hydromon.engine.core import MonitorCore
 
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
@@ -115,32 +123,40 @@ def replay_direct_jobs(src, *, jobs: int, keys: Iterable[str] | None = None, sta
     jobs = min(jobs, len(rigs))
     shared = _for_workers(src)
     if jobs <= 1 or shared is None or "fork" not in multiprocessing.get_all_start_methods():
-        return replay_direct(src, **window, namespace=namespace, core=make_core())
+        return replay_direct(src, **window, namespace=namespace, core=make_core(), progress=progress)
     src = shared
     first = make_core()
     if len(rigs) > first.max_rigs:
-        return replay_direct(src, **window, namespace=namespace, core=first)
+        return replay_direct(src, **window, namespace=namespace, core=first, progress=progress)
     shards = shard_rigs(rigs, jobs)
     ctx = multiprocessing.get_context("fork")
+    done = ctx.Array("d", jobs, lock=False)  # recording seconds each worker has read
+    total_s = window_span(src, start, duration)[1]
     procs, conns = [], []
     for k in range(jobs):
         parent, child = ctx.Pipe(duplex=False)
-        p = ctx.Process(target=_work, args=(k, shards, src, window, make_core, child), daemon=True)
+        p = ctx.Process(target=_work, args=(k, shards, src, window, make_core, child, done), daemon=True)
         p.start()
         child.close()
         procs.append(p)
         conns.append(parent)
-    results = []
+    results: dict[int, tuple] = {}
     try:
-        for k, (p, conn) in enumerate(zip(procs, conns)):
-            try:
-                got = conn.recv()
-            except EOFError:
-                p.join()
-                raise RuntimeError(f"replay worker {k + 1} of {jobs} died (exit status {p.exitcode})") from None
-            if got[0] != "ok":
-                raise RuntimeError(f"replay worker {k + 1} of {jobs} failed: {got[1]}\n{got[2]}")
-            results.append(got[1:])
+        while len(results) < jobs:
+            ready = multiprocessing.connection.wait([c for k, c in enumerate(conns) if k not in results], 0.2)
+            if progress is not None:
+                progress(min(done[:]), total_s)
+            for conn in ready:
+                k = conns.index(conn)
+                try:
+                    got = conn.recv()
+                except EOFError:
+                    procs[k].join()
+                    raise RuntimeError(f"replay worker {k + 1} of {jobs} died (exit status {procs[k].exitcode})") \
+                        from None
+                if got[0] != "ok":
+                    raise RuntimeError(f"replay worker {k + 1} of {jobs} failed: {got[1]}\n{got[2]}")
+                results[k] = got[1:]
     finally:
         for p in procs:
             p.join(timeout=5)
@@ -148,7 +164,7 @@ def replay_direct_jobs(src, *, jobs: int, keys: Iterable[str] | None = None, sta
                 p.kill()
                 p.join()
     out = ReplayResult()
-    for _, counters, rig_ids, latest in results:
-        out.add(counters, rig_ids, latest)
-    merged = heapq.merge(*(health for health, *_ in results), key=itemgetter(0))
+    for k in range(jobs):
+        out.add(*results[k][1:])
+    merged = heapq.merge(*(results[k][0] for k in range(jobs)), key=itemgetter(0))
     return [(key, payload) for _, key, payload in merged], out

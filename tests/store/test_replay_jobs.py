@@ -90,7 +90,7 @@ def test_a_worker_that_fails_or_dies_is_an_error_not_missing_health(mixed):
             raise OSError("disk on fire")
         return MonitorCore()
 
-    with pytest.raises(RuntimeError, match="replay worker 1 of 2 failed: OSError: disk on fire"):
+    with pytest.raises(RuntimeError, match=r"replay worker [12] of 2 failed: OSError: disk on fire"):
         replay_direct_jobs(mixed, jobs=2, make_core=failing)
 
     def dying():
@@ -98,7 +98,7 @@ def test_a_worker_that_fails_or_dies_is_an_error_not_missing_health(mixed):
             os._exit(3)
         return MonitorCore()
 
-    with pytest.raises(RuntimeError, match=r"replay worker 1 of 2 died \(exit status 3\)"):
+    with pytest.raises(RuntimeError, match=r"replay worker [12] of 2 died \(exit status 3\)"):
         replay_direct_jobs(mixed, jobs=2, make_core=dying)
 
 
@@ -117,3 +117,13 @@ def test_cli_jobs_gives_the_same_file(mixed, tmp_path, capsys):
     assert "--jobs 0 must be >= 1" in capsys.readouterr().err
     assert main(["replay", str(mixed), "--jobs", "2"]) == 2
     assert "--jobs goes with --direct" in capsys.readouterr().err
+
+
+def test_progress_climbs_to_the_end_of_the_window(mixed):
+    for run in (lambda p: replay_direct(mixed, progress=p), lambda p: replay_direct_jobs(mixed, jobs=2, progress=p),
+                lambda p: replay_direct_jobs(mixed, jobs=2, start=1.0, duration=2.0, progress=p)):
+        seen = []
+        run(lambda done, total: seen.append((done, total)))
+        done = [d for d, _ in seen]
+        assert done == sorted(done) and len({t for _, t in seen}) == 1
+        assert seen[-1][0] == seen[-1][1] and seen[-1][1] in (2.0, pytest.approx(4.0, abs=0.02))

@@ -44,7 +44,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--loop", action="store_true", help="play the window again and again until Ctrl-C")
     parser.add_argument("--wait", type=float, default=None, metavar="S",
                         help=f"wait up to S seconds for a subscriber before sending (default {DEFAULT_WAIT_S:g})")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar (with --direct too)")
     parser.add_argument("--direct", action="store_true",
                         help="no bus: run the monitor in-process over the recording as fast as possible and "
                         "print the health sequence as JSON lines (or write it to --out)")
@@ -102,8 +102,27 @@ def _direct(args) -> int:
     def make_core():
         return MonitorCore(args.namespace, on_reject=RateLimitedLog(), ranges=ranges, options=options)
 
-    health, core = replay_direct_jobs(args.file, jobs=args.jobs or 1, keys=args.keys, start=args.start,
-                                      duration=args.duration, namespace=args.namespace, make_core=make_core)
+    def grade(progress=None):
+        return replay_direct_jobs(args.file, jobs=args.jobs or 1, keys=args.keys, start=args.start,
+                                  duration=args.duration, namespace=args.namespace, make_core=make_core,
+                                  progress=progress)
+
+    if args.quiet:
+        health, core = grade()
+    else:
+        from rich.console import Console
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        # no refresh thread: --jobs forks workers, best from a process with one thread
+        with Progress(TextColumn("grading"), BarColumn(), TextColumn("{task.completed:.0f}/{task.total:.0f} s"),
+                      TimeElapsedColumn(), console=Console(stderr=True), transient=True, auto_refresh=False) as bar:
+            task = bar.add_task("grading", total=0)
+
+            def show(done, total):
+                bar.update(task, completed=done, total=total)
+                bar.refresh()
+
+            health, core = grade(show)
     why = nothing_graded(args.file, health, core.counters)
     if why:
         raise NothingToReplay(why)  # before --out: no empty health file
