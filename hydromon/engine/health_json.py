@@ -60,8 +60,9 @@ _Q = orjson.dumps  # JSON text of a key or string, escaped as orjson escapes it 
 class _Pieces:
     """Byte pieces the writer copies, interned: ``index(key)`` is the number of the piece ``key``
     (bytes: as they are; a str or None: its JSON), ``arrays()`` all of them as one uint8 array with
-    start and end offsets. Bounded: past ``limit`` pieces it starts
-    over (a fleet's distinct statuses, graded tuples and tags are far fewer)."""
+    start and end offsets. Bounded: :meth:`trim`, between batches, starts over past ``limit``
+    pieces (a fleet's distinct statuses and tags are far fewer); numbers given out stay valid
+    until then."""
 
     def __init__(self, fixed: list[bytes], limit: int = 100_000):
         self._fixed, self.limit = list(fixed), limit
@@ -74,11 +75,13 @@ class _Pieces:
         for b in self._fixed:
             self.index(b)
 
+    def trim(self) -> None:
+        if len(self._list) > self.limit:
+            self._reset()
+
     def index(self, key: bytes | str | None) -> int:
         i = self._ids.get(key)
         if i is None:
-            if len(self._list) >= self.limit:
-                self._reset()
             i = self._ids[key] = len(self._list)
             self._list.append(key if isinstance(key, bytes) else _Q(key))
             self._made = None
@@ -239,6 +242,7 @@ class HealthWriter:
         nums[:, 0], nums[:, 1], nums[:, 2:2 + _P], nums[:, 2 + _P:] = t, conf, params, std_errors
         text = np.frombuffer(orjson.dumps(nums.reshape(-1), option=orjson.OPT_SERIALIZE_NUMPY), np.uint8)
         pieces = self.pieces
+        pieces.trim()
         index = pieces.index
         row_pieces = np.array([(index(st), index(tag)) for st, tag in zip(statuses, tags)],
                               dtype=np.int64).reshape(n, 2)

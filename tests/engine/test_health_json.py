@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from hydromon.contract import PARAM_NAMES, STATUSES, Health
-from hydromon.engine.health_json import health_payload, health_payloads
+from hydromon.engine.health_json import HealthWriter, health_payload, health_payloads
 
 GRADED = ("B_fv", "f_c", "C_ip", "C_ep", "K_sv_omega_sv2")
 P = len(PARAM_NAMES)
@@ -72,3 +72,15 @@ def test_what_the_contract_never_holds_is_refused_not_written():
     for bad in (dict(seqs=[-1]), dict(level=np.array([5])), dict(grades=np.full((1, P), 9))):
         with pytest.raises(ValueError, match="seqs must be >= 0"):
             health_payloads(**{**ok, **bad})
+
+
+def test_a_writer_past_its_piece_limit_starts_over_between_batches_not_within_one():
+    writer = HealthWriter()
+    writer.pieces.limit = 30  # a batch of 40 distinct tags goes past it
+    p = np.full((40, P), 1.5)
+    for b in range(3):
+        tags = [f"rig-{b}-{j}.json" for j in range(40)]
+        got = writer.payloads(list(range(40)), np.arange(40) * 0.1, np.zeros(40, np.int64), np.full(40, 0.5), p, p,
+                              np.zeros((40, P), np.int64), ["ok"] * 40, GRADED, tags)
+        assert got == [health_payload(j, j * 0.1, 0, 0.5, [1.5] * P, [1.5] * P, [0] * len(GRADED), "ok", GRADED,
+                                      tags[j]) for j in range(40)]
