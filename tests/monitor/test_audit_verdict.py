@@ -59,3 +59,16 @@ def test_an_effect_outside_the_library_is_unexplained_and_located():
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert res.cause == "unexplained" and not res.causes and res.obeys, (res.cause, res.note)
     assert "the valve equation leaves" in res.note, res.note
+
+
+def test_a_friction_that_grows_with_pressure_is_unexplained_and_a_breakaway_hump_is_still_named():
+    # a piston seal friction 1e-4 m^2 x |p1 - p2|: the nearest candidates (a load offset, Coulomb
+    # friction) soak up its mean; what follows the pressure is left, and no candidate has it
+    s, cfg = _record("outside", {"seal_friction": 1}, "steps", 0.1, "realistic", 5)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "unexplained" and not res.causes, (res.cause, res.note)
+    assert "force equation" in res.note and "grows with pressure" in res.note, res.note
+    # a genuine friction effect of the library on the same input leaves no such structure
+    s, cfg = _record("one", {"stribeck_friction": 600.0}, "steps", 0.5, "realistic", 17)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "stribeck_friction", (res.cause, res.note)
