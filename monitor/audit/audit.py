@@ -33,7 +33,7 @@ at these speeds) and barely earns its place, ``confident`` is False and ``note``
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
@@ -43,9 +43,10 @@ from plant_sim.params import Effects
 
 from .candidates import LIBRARY
 from .freerun import SENSORS, channel_scores, free_run
-from .residuals import BLOCKS, PROBES, Fit, build_blocks, fit_blocks, merge_specs, nominal_params, signals, Spec
+from .residuals import BLOCKS, Fit, build_blocks, fit_blocks, merge_specs, nominal_params, signals, Spec
 from .verdict import EQUATION_OF, POSITIVE_AUDIT, impossible_params  # noqa: F401  (re-exported)
 from .decide import decide
+from .probe import probe_fits
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
 
@@ -412,34 +413,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         return (_log_ratio(te1, te) - opt.penalty * c2.n_extra if ok else 0.0), f, eff
 
     def probe(names):
-        # the named model plus generic columns of measured signals no candidate has (PROBES), per
-        # family: {family: (score, base fit, probe fit)}; a friction family is fitted beyond a
-        # velocity-dependent friction (the Stribeck hump at its searched v_s), so that what it
-        # finds depends on pressure, not on speed
-        spec = Spec()
-        for n in names:
-            c, v, _ = fits[n]
-            spec = merge_specs(spec, c.spec(v)) or spec
-        out = {}
-        for family, cols in PROBES.items():
-            sp = spec
-            if family == "friction" and "stribeck_friction" in fits and "stribeck_friction" not in names:
-                c, v, _ = fits["stribeck_friction"]
-                sp = merge_specs(spec, c.spec(v)) or spec
-            cols = {k: fn for k, fn in cols.items() if not (k == "probe_1" and "F_off" in sp.force_cols)}
-            try:
-                base = fit_blocks(build_blocks(sig, cfg, sp, theta0), split, cfg.h, cache) if sp != Spec() else nominal
-                f = fit_blocks(build_blocks(sig, cfg, replace(sp, force_cols={**sp.force_cols, **cols}), theta0),
-                               split, cfg.h, cache)
-            except (ValueError, np.linalg.LinAlgError):
-                continue
-            tr0, te0 = _mse_split(base, split, floors)
-            tr, te = _mse_split(f, split, floors)
-            score = math.log(te0["force"] / te["force"]) - opt.penalty * len(cols)
-            if math.log(tr0["force"] / tr["force"]) <= 0:
-                score = min(score, 0.0)
-            out[family] = (score, base, f)
-        return out
+        return probe_fits(names, fits, sig, cfg, split, theta0, cache, nominal, floors, opt.penalty)
 
     verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe)
     return AuditResult(

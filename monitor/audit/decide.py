@@ -24,7 +24,7 @@ Rules (scores as in ``monitor.audit.audit``, threshold ``opt.threshold``):
    When the nominal fit is impossible and no candidate restores it, the record **does not obey
    the model**, with the equation whose parameter is impossible.
 4. ``unexplained`` also when, beyond the named cause(s) (or the nominal model when none is
-   named), a family of generic columns of measured signals (``PROBES``: the chamber pressures'
+   named), a family of generic columns of measured signals (``monitor.audit.probe.PROBES``: the chamber pressures'
    level; sign(v) times each chamber's pressure) takes more than ``PROBE`` of the force
    equation's held-out residual: the nearest candidate soaked up part of an effect that follows
    a measured signal no candidate has (a pressure sensor's gain error, a friction that grows
@@ -52,7 +52,7 @@ steps) to 4.4; second candidates on one-effect records (10-sample delay, 120 um 
 
 PROBE = 0.5
 """Held-out score (log variance ratio of the force equation, less 0.01 per column) above which a
-family of ``monitor.audit.residuals.PROBES`` columns, fitted beyond the named model, is structure
+family of ``monitor.audit.probe.PROBES`` columns, fitted beyond the named model, is structure
 no candidate explains [-]. Tuning records (bases 100000, 5100000, 5200000): a 3 % cap-side
 pressure-gain error scored 0.75-5.1 (paper-id at fault-grade health -0.01 twice: missed), a seal
 friction of 1e-4 m^2 times the differential pressure 0.63-4.1 on steps and multisine (paper-id

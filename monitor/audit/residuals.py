@@ -46,7 +46,7 @@ from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, signals  # noqa
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
-           "nominal_params", "BLOCKS", "orifice_factors", "merge_specs", "PROBES"]
+           "nominal_params", "BLOCKS", "orifice_factors", "merge_specs"]
 
 BLOCKS = ("force", "rest", "chamber", "valve")
 VAR_FLOOR = {"force": 1.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
@@ -66,18 +66,6 @@ variance s2 is s2 sqrt(2 / n_eff), with n_eff = n / FORCE_WINDOW independent row
 correlates neighbours): at realistic noise (about 20 N rms of net force) it is 85-115 N^2
 on the held-out part of a 20 s record, and a difference of a few N^2 between two fits'
 residual variances is noise, not evidence."""
-PROBES = {
-    "pressure": {"probe_1": lambda sig, cfg, x1, v: np.ones_like(v),
-                 "probe_pressure_level": lambda sig, cfg, x1, v: cfg.A1 * sig.x3 + cfg.A2 * sig.x4},
-    "friction": {"probe_1": lambda sig, cfg, x1, v: np.ones_like(v),
-                 "probe_sign_v_cap": lambda sig, cfg, x1, v: np.sign(v) * cfg.A1 * sig.x3,
-                 "probe_sign_v_rod": lambda sig, cfg, x1, v: np.sign(v) * cfg.A2 * sig.x4},
-}
-"""Force-equation columns of measured signals that no candidate of the library has [N per unit],
-in two families: a constant and the chamber pressure forces' sum A1 x3 + A2 x4 (with the left
-side A1 x3 - A2 x4 it spans either chamber's pressure force: a pressure sensor's gain error; one
-pressure direction only, or the left side itself would be a regressor), and each chamber's
-pressure force times sign(v) (a friction that grows with pressure)."""
 STEP_ERROR = 5.0  # [N] net-force noise rms above which the force rows next to a command step are scored
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
 
