@@ -23,7 +23,8 @@ paper's ``sqrt((1 +- sign x_v)/rho)`` selects one branch and supplies the factor
 Effects (all off by default; see :class:`plant_sim.params.Effects`) enter as the
 documented physical models: Stribeck friction, spool dead band (overlap), supply
 pressure sag through a line resistance, entrained air lowering the bulk modulus at
-low pressure, and an unknown load offset. Spool saturation is a hard stop applied
+low pressure, an unknown load offset, and a seal friction loaded by the differential
+pressure. Spool saturation is a hard stop applied
 by the integrator; sensor delay is a property of the measurement.
 """
 
@@ -36,7 +37,7 @@ from numba import njit
 
 from .params import (
     P_A1, P_A2, P_AIR, P_ATM, P_B, P_BETA, P_CDW_RHO, P_CEP, P_CIP, P_DB, P_FC, P_FL,
-    P_FOFF, P_FS, P_FV, P_KF, P_KP, P_KSV, P_KT, P_M, P_PS, P_SAG, P_V10, P_V20, P_VS,
+    P_FOFF, P_FS, P_FV, P_KF, P_KP, P_KSV, P_KT, P_M, P_PS, P_SAG, P_SEAL, P_V10, P_V20, P_VS,
     P_WSV, P_ZSV,
 )
 
@@ -105,9 +106,11 @@ def inv_bulk_modulus(pressure: float, p: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def friction(v: float, p: np.ndarray) -> float:
-    """Friction force [N] at piston velocity v [m/s] (eq 15 with delta = 2, plus viscous f_v)."""
-    f = p[P_FV] * v
+def friction(v: float, p: np.ndarray, dp: float = 0.0) -> float:
+    """Friction force [N] at piston velocity v [m/s] (eq 15 with delta = 2, plus viscous f_v),
+    plus the pressure-loaded seal friction c_p |dp| sign(v) for the differential pressure dp
+    across the piston [Pa] (``Effects.seal_friction``)."""
+    f = p[P_FV] * v + p[P_SEAL] * abs(dp) * _sgn(v)
     fs = p[P_FS]
     s = _sgn(v)
     if fs > 0.0:
@@ -137,7 +140,7 @@ def derivatives(x: np.ndarray, ug: float, x1_fb: float, p: np.ndarray, out: np.n
     cip, cep = p[P_CIP], p[P_CEP]
     v1 = p[P_V10] + a1 * x1
     v2 = p[P_V20] - a2 * x1
-    force = a1 * x3 - a2 * x4 - p[P_B] * x2 - p[P_KT] * x1 - friction(x2, p) - p[P_FL] - p[P_FOFF]
+    force = a1 * x3 - a2 * x4 - p[P_B] * x2 - p[P_KT] * x1 - friction(x2, p, x3 - x4) - p[P_FL] - p[P_FOFF]
     du = p[P_KP] * (ug - p[P_KF] * x1_fb)
     w = p[P_WSV]
     out[0] = x2

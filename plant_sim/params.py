@@ -130,6 +130,11 @@ class Effects(_Model):
     sensor_delay_in_loop : bool
         True: the controller's feedback sees the delayed position too (a slow sensor);
         False: only the recording is delayed (a logging/transport delay).
+    seal_friction : float
+        Pressure-loaded piston seal friction [m^2]: the differential pressure across the piston
+        seal presses its lip on the bore, F_seal = c_p |p1 - p2| sign(v), c_p the lip's contact
+        area times its friction coefficient (about 1e-4 m^2: 10 cm^2 at 0.1). Not one of the
+        audit's named candidates (``EFFECT_NAMES``): an effect outside its library.
     """
 
     stribeck_F_s: float = Field(0.0, ge=0)
@@ -141,10 +146,11 @@ class Effects(_Model):
     load_offset: float = 0.0
     sensor_delay: int = Field(0, ge=0, le=1000)
     sensor_delay_in_loop: bool = False
+    seal_friction: float = Field(0.0, ge=0)
 
     @model_validator(mode="after")
     def _finite(self) -> "Effects":
-        for name in ("stribeck_F_s", "stribeck_v_s", "dead_band", "supply_sag", "load_offset"):
+        for name in ("stribeck_F_s", "stribeck_v_s", "dead_band", "supply_sag", "load_offset", "seal_friction"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"effect {name} must be finite, got {getattr(self, name)!r}")
         return self
@@ -197,9 +203,9 @@ P_ATM = 101325.0  # [Pa]
 (
     P_A1, P_A2, P_V10, P_V20, P_PS, P_FL, P_KP, P_KF,
     P_M, P_B, P_KT, P_BETA, P_CDW_RHO, P_CIP, P_CEP, P_KSV, P_WSV, P_ZSV, P_FC, P_FV,
-    P_FS, P_VS, P_XMAX, P_DB, P_SAG, P_AIR, P_FOFF, P_KI, P_KFF,
-) = range(29)
-N_PARAMS = 29
+    P_FS, P_VS, P_XMAX, P_DB, P_SAG, P_AIR, P_FOFF, P_KI, P_KFF, P_SEAL,
+) = range(30)
+N_PARAMS = 30
 
 
 def plant_vector(config: RigConfig, params: PlantParams, effects: Effects | None = None,
@@ -221,7 +227,7 @@ def plant_vector(config: RigConfig, params: PlantParams, effects: Effects | None
     v[P_KSV], v[P_WSV], v[P_ZSV] = params.K_sv, params.omega_sv, params.zeta_sv
     v[P_FC], v[P_FV] = params.f_c, params.f_v
     v[P_FS], v[P_VS], v[P_XMAX], v[P_DB] = e.stribeck_F_s, e.stribeck_v_s, e.x_max, e.dead_band
-    v[P_SAG], v[P_AIR], v[P_FOFF] = e.supply_sag, e.air_fraction, e.load_offset
+    v[P_SAG], v[P_AIR], v[P_FOFF], v[P_SEAL] = e.supply_sag, e.air_fraction, e.load_offset, e.seal_friction
     c = controller or Controller()
     v[P_KI], v[P_KFF] = c.K_i, c.K_ff
     return v

@@ -4,6 +4,8 @@ effects at once, and an effect outside the library (``unexplained``). Records fr
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from hydromon.report.audit import to_json
@@ -59,3 +61,30 @@ def test_an_effect_outside_the_library_is_unexplained_and_located():
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert res.cause == "unexplained" and not res.causes and res.obeys, (res.cause, res.note)
     assert "the valve equation leaves" in res.note, res.note
+
+
+def test_a_friction_that_grows_with_pressure_is_unexplained_and_a_breakaway_hump_is_still_named():
+    # a piston seal friction 1e-4 m^2 x |p1 - p2|: the nearest candidates (a load offset, Coulomb
+    # friction) soak up its mean; what follows the pressure is left, and no candidate has it
+    s, cfg = _record("outside", {"seal_friction": 1}, "steps", 0.1, "realistic", 5)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "unexplained" and not res.causes, (res.cause, res.note)
+    assert "force equation" in res.note and "grows with pressure" in res.note, res.note
+    # a genuine friction effect of the library on the same input leaves no such structure
+    s, cfg = _record("one", {"stribeck_friction": 600.0}, "steps", 0.5, "realistic", 17)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "stribeck_friction", (res.cause, res.note)
+
+
+def test_an_extension_whose_free_run_diverges_is_not_named_and_a_genuine_sag_still_is():
+    # a clean multisine record at stress noise: a supply sag lowers the chamber residual only
+    # through its own larger predicted noise share, and its model does not simulate the record
+    s, cfg = _record("clean", {}, "multisine", 0.7, "stress", 100224)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    sag = next(c for c in res.candidates if c.name == "supply_pressure_sag")
+    assert sag.score > 0.15 and sag.gain == -math.inf, (sag.score, sag.gain)
+    assert res.cause == "none", (res.cause, res.note)
+    # a genuine sag at its realistic-noise limit wins partly the same way, and simulates better
+    s, cfg = _record("one", {"supply_pressure_sag": 1e9}, "paper-var", 0.3, "realistic", 100081)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "supply_pressure_sag" and res.best.gain > 0, (res.cause, res.note)

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from hydromon.contract import GRADES, RigConfig
 from plant_sim.degradation import degrade, grade_of_severity, table4_group
 from plant_sim.integrate import run_fleet
-from plant_sim.model import equilibrium_state, null_state, orifice_z, valve_flows
+from plant_sim.model import derivatives, equilibrium_state, null_state, orifice_z, valve_flows
 from plant_sim.noise import add_noise, noise_model
 from plant_sim.params import P_CDW_RHO, P_PS, Effects, PlantParams, plant_vector
 from plant_sim.profiles import PaperIdentification, PaperVariable, parse_profile
@@ -150,6 +150,19 @@ def test_effects_change_the_plant():
         assert change > 0.1 * measured, (eff, change)
     sat = simulate(PaperIdentification(), 3.0, effects=Effects(x_max=2e-4)).states
     assert np.abs(sat[:, 4]).max() <= 2e-4 + 1e-15
+
+
+@settings(max_examples=50, deadline=None)
+@given(v=st.floats(-0.05, 0.05), p1=st.floats(0, 12e6), p2=st.floats(0, 12e6), c_p=st.floats(1e-6, 1e-3))
+def test_seal_friction_is_the_differential_pressure_times_c_p_against_the_motion(v, p1, p2, c_p):
+    # F_seal = c_p |p1 - p2| sign(v) [N] enters the force balance: m dv/dt falls by exactly that
+    x = np.array([0.01, v, p1, p2, 1e-5, 0.0])
+    with_seal, without = np.empty(6), np.empty(6)
+    derivatives(x, 0.5, 0.01, plant_vector(RigConfig(), PlantParams(), Effects(seal_friction=c_p)), with_seal)
+    derivatives(x, 0.5, 0.01, plant_vector(RigConfig(), PlantParams()), without)
+    drop = (without[1] - with_seal[1]) * PlantParams().m
+    assert drop == pytest.approx(c_p * abs(p1 - p2) * np.sign(v), rel=1e-9, abs=1e-6)
+    assert np.array_equal(np.delete(with_seal, 1), np.delete(without, 1))
 
 
 def test_sensor_delay_in_recording_only():
