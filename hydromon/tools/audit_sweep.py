@@ -46,7 +46,7 @@ BASE = {"tune": 100_000, "heldout": 900_000}
 CLAIMS = {
     "stribeck_friction": ("N above Coulomb (v_s = 10 mm/s)", {"none": 30.0, "realistic": 80.0}, 600.0,
                           lambda v: dict(stribeck_F_s=v, stribeck_v_s=0.01)),
-    "valve_saturation": ("share of samples cut", {"none": 0.01, "realistic": 0.01}, 0.3,
+    "valve_saturation": ("share of samples cut", {"none": 0.03, "realistic": 0.03}, 0.3,
                          lambda v: dict(x_max=v)),
     "valve_dead_band": ("um", {"none": 2.5, "realistic": 5.0}, 120.0, lambda v: dict(dead_band=v * 1e-6)),
     "supply_pressure_sag": ("Pa/(m^3/s)", {"none": 5e8, "realistic": 1e9}, 3e10, lambda v: dict(supply_sag=v)),
