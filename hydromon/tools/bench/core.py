@@ -169,13 +169,41 @@ def bench_memory(n_rigs: int = 10_000) -> dict:
 
 # -- replay -------------------------------------------------------------------------------------
 
+def _get_while_alive(q, p, timeout: float):
+    """The result a worker process puts on ``q``; RuntimeError when it dies first or takes longer
+    than ``timeout`` [s]."""
+    import queue
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            return q.get(timeout=1.0)
+        except queue.Empty:
+            if not p.is_alive():
+                raise RuntimeError(f"bench worker died (exit status {p.exitcode})") from None
+    raise RuntimeError(f"bench worker gave no result in {timeout:g} s")
+
+
+def _replay_jobs_worker(data: bytes, n_samples: int, jobs: int, repeats: int, out) -> None:
+    from hydromon.store.replay_jobs import replay_direct_jobs
+
+    def run(k):
+        _, core = replay_direct_jobs(io.BytesIO(data), jobs=k)
+        if core.counters.accepted != n_samples:
+            raise RuntimeError(f"replay accepted {core.counters.accepted} samples, expected {n_samples}")
+
+    out.put({"monitor_core_fresh": _median_rate(n_samples, lambda: run(1), repeats),
+             "monitor_core_jobs": _median_rate(n_samples, lambda: run(jobs), repeats)})
+
+
 def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int = 3, frame: int | None = None,
                         jobs: int = 1) -> dict:
     """samples/s of a recording (in-memory MCAP) read, decoded, validated and graded.
 
     With ``frame`` N the recording holds frames of N samples (``hydromon sim --to-mcap --frame N``)
-    and only the ``monitor_core`` path is measured. With ``jobs`` > 1 it is measured in one
-    process and in ``jobs`` (``replay --direct --jobs``: ``jobs``, the rigs split between them).
+    and only the ``monitor_core`` path is measured. With ``jobs`` > 1 it is measured too in a
+    fresh process, as ``replay --direct`` runs, in one process (``monitor_core_fresh``) and in
+    ``jobs`` (``monitor_core_jobs``: ``replay --direct --jobs``, the rigs split between them).
 
     Two paths over the same ``hydromon sim --to-mcap``-style recording of ``n_rigs`` rigs:
     ``monitor_core`` (the headline): :func:`hydromon.store.replay.replay_direct`, the path of
@@ -240,8 +268,20 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
 
         out["monitor_core"] = _median_rate(n_samples, core_pass, repeats)
         if jobs > 1:
-            out["jobs"] = jobs
-            out["monitor_core_jobs"] = _median_rate(n_samples, lambda: core_pass(jobs), repeats)
+            # as `replay --direct --jobs` runs: from a fresh process (forking this one, with the
+            # other figures' memory, costs more), against one job in that same process
+            ctx = mp.get_context("spawn")
+            q = ctx.Queue()
+            # not a daemon: it forks the replay's workers
+            p = ctx.Process(target=_replay_jobs_worker, args=(data, n_samples, jobs, repeats, q))
+            p.start()
+            try:
+                got = _get_while_alive(q, p, 600.0)
+            finally:
+                p.join(timeout=30)
+                if p.is_alive():
+                    p.kill()
+            out.update(jobs=jobs, **got)
     out["samples_per_s"] = out.get("monitor_core", out.get("pydantic"))
     out["via"] = "monitor_core" if "monitor_core" in out else "pydantic"
     return out
