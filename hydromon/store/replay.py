@@ -84,13 +84,17 @@ def recording_topics(src) -> list[str]:
 def window(src, start: float | None, duration: float | None) -> tuple[int, int | None, int | None, int]:
     """``(first, lo, hi, count)``: the recording's first log time, the window [lo, hi) of ``start`` and
     ``duration`` [s] from it in log time [ns] (hi None: to the end), and the message count."""
+    first, _, count = recording_span(src)
+    return (first, *_bounds(first, start, duration), count)
+
+
+def _bounds(first: int, start: float | None, duration: float | None) -> tuple[int, int | None]:
+    """``(lo, hi)`` [ns] of the window ``start``, ``duration`` [s] from log time ``first`` [ns]."""
     for name, v in (("start", start), ("duration", duration)):
         if v is not None and not v >= 0:
             raise ValueError(f"{name} {v!r} must be >= 0 s")
-    first, last, count = recording_span(src)
     lo = first + round((start or 0.0) * 1e9)
-    hi = None if duration is None else lo + round(duration * 1e9)
-    return first, lo, hi, count
+    return lo, None if duration is None else lo + round(duration * 1e9)
 
 
 def read_window(src, lo: int | None, hi: int | None, first: int) -> Iterator[tuple[str, bytes, int, int]]:
@@ -230,8 +234,8 @@ def replay_direct(src, *, keys: Iterable[str] | None = None, start: float | None
 def window_span(src, start: float | None, duration: float | None) -> tuple[int, float]:
     """``(lo, total_s)``: the window's first log time [ns] and its length [s] (for progress)."""
     first, last, _ = recording_span(src)
-    lo = first + round((start or 0.0) * 1e9)
-    end = last if duration is None else min(last, lo + round(duration * 1e9))
+    lo, hi = _bounds(first, start, duration)
+    end = last if hi is None else min(last, hi)
     return lo, max(end - lo, 0) / 1e9
 
 

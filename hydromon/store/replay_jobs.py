@@ -83,9 +83,9 @@ def _for_workers(src):
     return name if isinstance(name, (str, os.PathLike)) and os.path.isfile(name) else None
 
 
-def _work(k: int, shards: dict, src, window: dict, make_core, conn, done) -> None:
+def _work(k: int, shards: dict, src, window: dict, span: tuple[int, float], make_core, conn, done) -> None:
     """Worker ``k``: grade its rigs' messages; send ``("ok", health, counters, rigs, latest)``;
-    the recording seconds it has read go into ``done[k]``."""
+    the recording seconds it has read of the window's ``span`` (``window_span``) go into ``done[k]``."""
     try:
         core = make_core()
         owner = _owner(shards)
@@ -93,8 +93,7 @@ def _work(k: int, shards: dict, src, window: dict, make_core, conn, done) -> Non
         def progress(done_s, _total_s):
             done[k] = done_s
 
-        messages = ticking(iter_window(src, **window), *window_span(src, window["start"], window["duration"]),
-                           progress)
+        messages = ticking(iter_window(src, **window), *span, progress)
         mine = ((g, (key, payload)) for g, (key, payload, _) in enumerate(messages) if owner(key) == k)
         health = graded(core, mine)
         conn.send(("ok", health, core.counters, list(core.rigs), dict(core.latest)))
@@ -131,11 +130,11 @@ def replay_direct_jobs(src, *, jobs: int, keys: Iterable[str] | None = None, sta
     shards = shard_rigs(rigs, jobs)
     ctx = multiprocessing.get_context("fork")
     done = ctx.Array("d", jobs, lock=False)  # recording seconds each worker has read
-    total_s = window_span(src, start, duration)[1]
+    span = window_span(src, start, duration)
     procs, conns = [], []
     for k in range(jobs):
         parent, child = ctx.Pipe(duplex=False)
-        p = ctx.Process(target=_work, args=(k, shards, src, window, make_core, child, done), daemon=True)
+        p = ctx.Process(target=_work, args=(k, shards, src, window, span, make_core, child, done), daemon=True)
         p.start()
         child.close()
         procs.append(p)
@@ -145,7 +144,7 @@ def replay_direct_jobs(src, *, jobs: int, keys: Iterable[str] | None = None, sta
         while len(results) < jobs:
             ready = multiprocessing.connection.wait([c for k, c in enumerate(conns) if k not in results], 0.2)
             if progress is not None:
-                progress(min(done[:]), total_s)
+                progress(min(done[:]), span[1])
             for conn in ready:
                 k = conns.index(conn)
                 try:

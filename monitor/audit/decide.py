@@ -85,12 +85,19 @@ class Verdict:
     """The fitted extension(s) of the named cause(s) as ``plant_sim.params.Effects`` fields."""
 
 
+def _signals(sig) -> dict:
+    """The measured signals a residual is compared with, by the name the verdict gives them."""
+    load = sig.x3l - sig.x4l
+    return {"velocity": sig.vl, "load pressure": load, "spool position": sig.x5l, "pressure level": sig.x3l + sig.x4l,
+            "sign(v) x load pressure": np.sign(sig.vl) * load}
+
+
 def _structure(fit, sig, split) -> dict:
     """Per block: residual share beyond noise of the held-out left side, and what it follows."""
     out = {}
     probes_of = {"force": ("velocity", "load pressure"), "chamber": ("velocity", "load pressure", "spool position"),
                  "valve": ("spool position", "velocity")}
-    signal = {"velocity": sig.vl, "load pressure": sig.x3l - sig.x4l, "spool position": sig.x5l}
+    signal = _signals(sig)
     for g in STRUCTURE:
         b = fit.blocks[g]
         te = b.rows >= split
@@ -121,10 +128,10 @@ def _probed(probe, names, sig, split, results) -> Verdict | None:
     b = base.blocks["force"]
     te = b.rows >= split
     rows = b.rows[te]
-    sv = np.sign(sig.vl)
-    signal = {"velocity": sig.vl, "load pressure": sig.x3l - sig.x4l, "pressure level": sig.x3l + sig.x4l,
-              "sign(v) x load pressure": sv * (sig.x3l - sig.x4l)}
-    like, r = residual_shape(base.residuals["force"][te], {k: x[rows] for k, x in signal.items()})
+    signal = _signals(sig)
+    like, r = residual_shape(base.residuals["force"][te],
+                             {k: signal[k][rows] for k in ("velocity", "load pressure", "pressure level",
+                                                           "sign(v) x load pressure")})
     what = " and ".join(names) if names else "the nominal model"
     near = f"; nearest candidate {results[0].name} (score {results[0].score:.2f})" if results else ""
     note = (f"no candidate of the library explains the force equation's residual: beyond {what}, a term in "

@@ -184,16 +184,19 @@ def _get_while_alive(q, p, timeout: float):
     raise RuntimeError(f"bench worker gave no result in {timeout:g} s")
 
 
-def _replay_jobs_worker(data: bytes, n_samples: int, jobs: int, repeats: int, out) -> None:
+def _replay_pass(data: bytes, n_samples: int, jobs: int = 1) -> None:
+    """``hydromon replay --direct [--jobs N]``'s path over the in-memory recording ``data``, its
+    batching; raises unless every one of its ``n_samples`` samples was taken."""
     from hydromon.store.replay_jobs import replay_direct_jobs
 
-    def run(k):
-        _, core = replay_direct_jobs(io.BytesIO(data), jobs=k)
-        if core.counters.accepted != n_samples:
-            raise RuntimeError(f"replay accepted {core.counters.accepted} samples, expected {n_samples}")
+    _, core = replay_direct_jobs(io.BytesIO(data), jobs=jobs)
+    if core.counters.accepted != n_samples:
+        raise RuntimeError(f"replay accepted {core.counters.accepted} samples, expected {n_samples}")
 
-    out.put({"monitor_core_fresh": _median_rate(n_samples, lambda: run(1), repeats),
-             "monitor_core_jobs": _median_rate(n_samples, lambda: run(jobs), repeats)})
+
+def _replay_jobs_worker(data: bytes, n_samples: int, jobs: int, repeats: int, out) -> None:
+    out.put({"monitor_core_fresh": _median_rate(n_samples, lambda: _replay_pass(data, n_samples), repeats),
+             "monitor_core_jobs": _median_rate(n_samples, lambda: _replay_pass(data, n_samples, jobs), repeats)})
 
 
 def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int = 3, frame: int | None = None,
@@ -258,15 +261,7 @@ def bench_replay_direct(n_rigs: int = 10, duration: float = 60.0, repeats: int =
     except ImportError:
         MonitorCore = None
     if MonitorCore is not None:
-        from hydromon.store.replay_jobs import replay_direct_jobs
-
-        def core_pass(k=1):
-            # hydromon replay --direct's path, its batching
-            _, core = replay_direct_jobs(io.BytesIO(data), jobs=k)
-            if core.counters.accepted != n_samples:
-                raise RuntimeError(f"replay accepted {core.counters.accepted} samples, expected {n_samples}")
-
-        out["monitor_core"] = _median_rate(n_samples, core_pass, repeats)
+        out["monitor_core"] = _median_rate(n_samples, lambda: _replay_pass(data, n_samples), repeats)
         if jobs > 1:
             # as `replay --direct --jobs` runs: from a fresh process (forking this one, with the
             # other figures' memory, costs more), against one job in that same process
