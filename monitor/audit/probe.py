@@ -24,14 +24,17 @@ PROBES = {
     "pressure": {"probe_1": lambda sig, cfg, x1, v: np.ones_like(v),
                  "probe_pressure_level": lambda sig, cfg, x1, v: cfg.A1 * sig.x3 + cfg.A2 * sig.x4},
     "friction": {"probe_1": lambda sig, cfg, x1, v: np.ones_like(v),
-                 "probe_sign_v_cap": lambda sig, cfg, x1, v: np.sign(v) * cfg.A1 * sig.x3,
-                 "probe_sign_v_rod": lambda sig, cfg, x1, v: np.sign(v) * cfg.A2 * sig.x4},
+                 "probe_sign_v_dp": lambda sig, cfg, x1, v: np.sign(v) * cfg.A1 * np.abs(sig.x3 - sig.x4)},
 }
 """Force-equation columns of measured signals that no candidate of the library has [N per unit],
 in two families: a constant and the chamber pressure forces' sum A1 x3 + A2 x4 (with the left
 side A1 x3 - A2 x4 it spans either chamber's pressure force: a pressure sensor's gain error; one
-pressure direction only, or the left side itself would be a regressor), and each chamber's
-pressure force times sign(v) (a friction that grows with pressure)."""
+pressure direction only, or the left side itself would be a regressor), and sign(v) times the
+pressure difference across the piston, A1 |x3 - x4| (a friction that grows with the pressure that
+presses the piston seal on the bore). The friction family is one column, not one per chamber:
+x3 + x4 stays near the supply pressure, so sign(v) x3 and sign(v) x4 are nearly collinear with
+Coulomb friction's sign(v), and fitted apart they extrapolate badly to the held-out part (a seal
+friction on the paper's sine scored -0.05 as two columns, 1.5-2.3 as one)."""
 
 
 def _force_mse(fit, split: int, floors: tuple[dict, dict]) -> tuple[float, float]:
