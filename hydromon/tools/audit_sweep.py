@@ -20,6 +20,10 @@ audit's thresholds, the ``heldout`` seeds were fixed before any result on them w
 
 A record counts as right when the audit names exactly its effect ("none" for clean records;
 both effects, in any order, for a pair). The last line times one full audit of a 60 s record.
+
+``--ladder NAME`` sweeps one effect instead, to find where it is detected on each input: 1, 2,
+4 and 8 times its claimed limit at each noise level, on every profile, each at the five bands'
+severities (160 records; seed ``BASE + 10000 + its index`` in that list).
 """
 
 from __future__ import annotations
@@ -42,20 +46,25 @@ BASE = {"tune": 100_000, "heldout": 900_000}
 
 # effect -> (unit shown, {noise: claimed limit}, large magnitude, Effects kwargs from a magnitude)
 # valve_saturation's magnitude is the share of samples its stop cuts (x_max is that quantile of
-# |x5| of the same record without a stop); a sensor delay's is whole samples.
+# |x5| of the same record without a stop); a sensor delay's is whole samples. A claimed limit is
+# the smallest multiple of the ladder (--ladder, tuning base 6200000) named in at least 18 of its
+# 20 records over every profile and band; Stribeck friction's 30 / 80 N are the limits it is
+# required to reach, which it does not (docs/audit.md).
 CLAIMS = {
     "stribeck_friction": ("N above Coulomb (v_s = 10 mm/s)", {"none": 30.0, "realistic": 80.0}, 600.0,
                           lambda v: dict(stribeck_F_s=v, stribeck_v_s=0.01)),
     "valve_saturation": ("share of samples cut", {"none": 0.03, "realistic": 0.03}, 0.3,
                          lambda v: dict(x_max=v)),
     "valve_dead_band": ("um", {"none": 2.5, "realistic": 5.0}, 120.0, lambda v: dict(dead_band=v * 1e-6)),
-    "supply_pressure_sag": ("Pa/(m^3/s)", {"none": 5e8, "realistic": 1e9}, 3e10, lambda v: dict(supply_sag=v)),
-    "entrained_air": ("volume fraction", {"none": 0.005, "realistic": 0.01}, 0.3, lambda v: dict(air_fraction=v)),
+    "supply_pressure_sag": ("Pa/(m^3/s)", {"none": 5e8, "realistic": 4e9}, 3e10, lambda v: dict(supply_sag=v)),
+    "entrained_air": ("volume fraction", {"none": 0.005, "realistic": 0.04}, 0.3, lambda v: dict(air_fraction=v)),
     "sensor_delay": ("samples (recording only)", {"none": 1, "realistic": 1}, 10,
                      lambda v: dict(sensor_delay=int(v), sensor_delay_in_loop=False)),
-    "load_offset": ("N", {"none": 100.0, "realistic": 200.0}, 4000.0, lambda v: dict(load_offset=v)),
+    "load_offset": ("N", {"none": 100.0, "realistic": 400.0}, 4000.0, lambda v: dict(load_offset=v)),
 }
 STEPS = ("limit", "4x limit", "large")
+LADDER = (1, 2, 4, 8)  # multiples of the claimed limit swept by --ladder
+LADDER_SEED = 10_000  # a ladder record's seed is the base plus this plus its index
 PAIRS = (("entrained_air", 0.04, "load_offset", 800.0), ("valve_dead_band", 20.0, "load_offset", -800.0),
          ("sensor_delay", 3, "entrained_air", 0.04))
 OUTSIDE = ("pi_loop", "pressure_gain", "seal_friction")
@@ -81,6 +90,18 @@ def _cases():
     for what in OUTSIDE:
         for profile in PROFILES:
             out.append(("outside", {what: 1}, profile, BANDS[len(out) % 5], "realistic", ""))
+    return out
+
+
+def _ladder_cases(name):
+    """``--ladder NAME``: the effect at each multiple of its claimed limit, noise, profile and band."""
+    out = []
+    for noise in NOISES:
+        for f in LADDER:
+            v = CLAIMS[name][1][noise] * f
+            for profile in PROFILES:
+                for sev in BANDS:
+                    out.append(("one", {name: v}, profile, sev, noise, f"{f}x limit"))
     return out
 
 
@@ -143,11 +164,17 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="every 7th record only (a smoke run)")
     ap.add_argument("--verbose", action="store_true", help="print every record as it is audited")
     ap.add_argument("--only", default=None, help="only the records of this effect, or of this kind (clean, pair, outside)")
+    ap.add_argument("--ladder", default=None, choices=tuple(CLAIMS),
+                    help="sweep this effect at 1, 2, 4 and 8 times its claimed limit on every profile and band")
     args = ap.parse_args(argv)
-    cases = _cases()
     base = BASE[args.seeds] if args.seed_base is None else args.seed_base
-    todo = [(i, c, base + i) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
-            and (args.only is None or args.only == c[0] or args.only in c[1])]
+    if args.ladder:
+        cases = _ladder_cases(args.ladder)
+        todo = [(i, c, base + LADDER_SEED + i) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
+    else:
+        cases = _cases()
+        todo = [(i, c, base + i) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
+                and (args.only is None or args.only == c[0] or args.only in c[1])]
     t0 = time.perf_counter()
     results = {}
     pool = ProcessPoolExecutor(args.jobs) if args.jobs > 1 else None
@@ -160,6 +187,9 @@ def main(argv=None):
             print(f"{mark} {i:3d} {kind:7s} {effects} {profile} sev {severity} {noise} {step}: {named}"
                   + ("" if named == truth else f"  ({note[:160]})"), flush=True)
     wall = time.perf_counter() - t0
+    if args.ladder:
+        _print_ladder(args.ladder, cases, results, base, wall)
+        return
     _print_tables(cases, results, args.seeds, base, wall)
     secs, cause = _time_60s()
     print(f"\nOne full audit (free run on, after a warm-up audit) of a 60 s paper-var record, realistic noise, "
@@ -202,6 +232,30 @@ def _print_tables(cases, results, seeds, base, wall):
         for i in wrong:
             kind, effects, profile, severity, noise, step = cases[i]
             print(f"- {i}: {kind} {effects} {profile} severity {severity} {noise} {step} -> {', '.join(results[i][0])}")
+
+
+def _print_ladder(name, cases, results, base, wall):
+    unit = CLAIMS[name][0]
+    print(f"Ladder of {name}, base {base} (seeds base + {LADDER_SEED} + index), {len(results)} records of "
+          f"{DURATION:g} s, {wall:.0f} s wall. Each cell: records named right of the five bands' records.\n")
+    print(f"| noise | {name} [{unit}] | multiple of the claimed limit | " + " | ".join(PROFILES) + " | all |")
+    print("|---|---|---|" + "---|" * (len(PROFILES) + 1))
+    right = lambda i: results[i][0] == results[i][1]  # noqa: E731
+    for noise in NOISES:
+        for f in LADDER:
+            cells, tot, n = [], 0, 0
+            for p in PROFILES:
+                idx = [i for i in results if cases[i][4] == noise and cases[i][5] == f"{f}x limit" and cases[i][2] == p]
+                k = sum(right(i) for i in idx)
+                cells.append(f"{k}/{len(idx)}" if idx else "-")
+                tot, n = tot + k, n + len(idx)
+            print(f"| {noise} | {CLAIMS[name][1][noise] * f:g} | {f} | " + " | ".join(cells) + f" | {tot}/{n} |")
+    wrong = [i for i in sorted(results) if not right(i)]
+    if wrong:
+        print("\nWrong answers (index: record -> named):")
+        for i in wrong:
+            kind, effects, profile, severity, noise, step = cases[i]
+            print(f"- {i}: {effects} {profile} severity {severity} {noise} -> {', '.join(results[i][0])}")
 
 
 def _time_60s():
