@@ -23,7 +23,9 @@ both effects, in any order, for a pair). The last line times one full audit of a
 
 ``--ladder NAME`` sweeps one effect instead, to find where it is detected on each input: 1, 2,
 4 and 8 times its claimed limit at each noise level, on every profile, each at the five bands'
-severities (160 records; seed ``BASE + 10000 + its index`` in that list).
+severities (160 records; seed ``BASE + 10000 + its index`` in that list). ``--clean N`` audits N
+clean records for each profile, band and noise level ``none``, ``realistic``, ``stress`` (seed
+``BASE + 20000 + its index``): how often a record without an effect is named one.
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ CLAIMS = {
 STEPS = ("limit", "4x limit", "large")
 LADDER = (1, 2, 4, 8)  # multiples of the claimed limit swept by --ladder
 LADDER_SEED = 10_000  # a ladder record's seed is the base plus this plus its index
+CLEAN_SEED = 20_000  # a --clean record's seed is the base plus this plus its index
 PAIRS = (("entrained_air", 0.04, "load_offset", 800.0), ("valve_dead_band", 20.0, "load_offset", -800.0),
          ("sensor_delay", 3, "entrained_air", 0.04))
 OUTSIDE = ("pi_loop", "pressure_gain", "seal_friction")
@@ -103,6 +106,12 @@ def _ladder_cases(name):
                 for sev in BANDS:
                     out.append(("one", {name: v}, profile, sev, noise, f"{f}x limit"))
     return out
+
+
+def _clean_cases(repeats):
+    """``--clean N``: N clean records per profile, band and noise level (stress included)."""
+    return [("clean", {}, profile, sev, noise, f"repeat {k}") for noise in NOISES + ("stress",)
+            for profile in PROFILES for sev in BANDS for k in range(repeats)]
 
 
 def _record(kind, effects, profile, severity, noise, seed, duration=DURATION):
@@ -166,11 +175,18 @@ def main(argv=None):
     ap.add_argument("--only", default=None, help="only the records of this effect, or of this kind (clean, pair, outside)")
     ap.add_argument("--ladder", default=None, choices=tuple(CLAIMS),
                     help="sweep this effect at 1, 2, 4 and 8 times its claimed limit on every profile and band")
+    ap.add_argument("--clean", type=int, default=None, metavar="N",
+                    help="audit N clean records per profile, band and noise level instead")
     args = ap.parse_args(argv)
+    if args.clean is not None and (args.clean < 1 or args.ladder):
+        ap.error("--clean takes N >= 1, and not with --ladder")
     base = BASE[args.seeds] if args.seed_base is None else args.seed_base
     if args.ladder:
         cases = _ladder_cases(args.ladder)
         todo = [(i, c, base + LADDER_SEED + i) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
+    elif args.clean:
+        cases = _clean_cases(args.clean)
+        todo = [(i, c, base + CLEAN_SEED + i) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
     else:
         cases = _cases()
         todo = [(i, c, base + i) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
@@ -189,6 +205,9 @@ def main(argv=None):
     wall = time.perf_counter() - t0
     if args.ladder:
         _print_ladder(args.ladder, cases, results, base, wall)
+        return
+    if args.clean:
+        _print_clean(cases, results, base, wall)
         return
     _print_tables(cases, results, args.seeds, base, wall)
     secs, cause = _time_60s()
@@ -256,6 +275,24 @@ def _print_ladder(name, cases, results, base, wall):
         for i in wrong:
             kind, effects, profile, severity, noise, step = cases[i]
             print(f"- {i}: {effects} {profile} severity {severity} {noise} -> {', '.join(results[i][0])}")
+
+
+def _print_clean(cases, results, base, wall):
+    print(f"Clean records, base {base} (seeds base + {CLEAN_SEED} + index), {len(results)} records of "
+          f"{DURATION:g} s, {wall:.0f} s wall.\n")
+    print("| noise | named none | named an effect | unexplained | refused |")
+    print("|---|---|---|---|---|")
+    for noise in NOISES + ("stress",):
+        got = [results[i][0] for i in results if cases[i][4] == noise]
+        named = sum(g not in (["none"], ["unexplained"], ["refused"]) for g in got)
+        print(f"| {noise} | {got.count(['none'])}/{len(got)} | {named} | {got.count(['unexplained'])} | "
+              f"{got.count(['refused'])} |")
+    wrong = [i for i in sorted(results) if results[i][0] != ["none"]]
+    if wrong:
+        print("\nNot none (index: record -> named):")
+        for i in wrong:
+            kind, effects, profile, severity, noise, step = cases[i]
+            print(f"- {i}: {profile} severity {severity} {noise} {step} -> {', '.join(results[i][0])}")
 
 
 def _time_60s():

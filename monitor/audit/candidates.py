@@ -134,11 +134,12 @@ class StribeckFriction(Candidate):
     caveat = ("at the record's speeds the Stribeck term is partly collinear with Coulomb + viscous "
               "friction")
     v_s: float = 0.01  # [m/s] default for a fit without a searched value
+    V_S_GRID = (0.005, 0.007, 0.01, 0.014, 0.02)  # [m/s] Stribeck velocities searched
 
     def grid(self, sig):
         # None: the breakaway level on the rest rows alone (a hump so large that the piston
         # sticks through most reversals leaves too few sliding rows near zero velocity)
-        return [None, 0.005, 0.007, 0.01, 0.014, 0.02]
+        return [None, *self.V_S_GRID]
 
     def spec(self, v_s):
         if v_s is None:

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .candidates import StribeckFriction
 from .verdict import EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape
 
 __all__ = ["Verdict", "decide", "STRUCTURE"]
@@ -149,6 +150,22 @@ def _probed(probe, names, sig, split, results) -> Verdict | None:
     return Verdict("unexplained", (), True, note, note, struct)
 
 
+def _sliding_speed_words(sig, nominal) -> str:
+    """What the record's sliding speeds allow: a breakaway hump is told from Coulomb plus viscous
+    friction only by rows that slide both slower and faster than its Stribeck velocity (on the
+    paper's sine at fault-grade health the median speed is 2.7 mm/s, and an 80 N hump at
+    realistic noise is not resolved)."""
+    v = np.abs(sig.vl[nominal.blocks["force"].rows])
+    if not len(v):
+        return "no row of the force equation slides"
+    lo, hi = min(StribeckFriction.V_S_GRID), max(StribeckFriction.V_S_GRID)
+    fast = float(np.mean(v > hi))
+    return (f"the piston slides at {1e3 * float(np.median(v)):.1f} mm/s at the median and faster than "
+            f"{1e3 * hi:.0f} mm/s in {100 * fast:.0f} % of the force equation's rows; a hump fades "
+            f"over {1e3 * lo:.0f}-{1e3 * hi:.0f} mm/s, so an input that drives it "
+            "faster would tell one")
+
+
 def _structure_words(struct: dict) -> str:
     bad = [(g, s) for g, s in struct.items() if s["share"] > STRUCTURE[g] and abs(s["r"]) >= STRUCTURE_R]
     return "; ".join(f"the {g} equation leaves {100 * s['share']:.0f} % of its variance unexplained, "
@@ -191,6 +208,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         hard = [c for c in results if c.caveat and c not in weak]
         if hard:
             note += "; cannot be excluded: " + "; ".join(f"{c.name} ({c.caveat})" for c in hard)
+            if any(c.name == "stribeck_friction" for c in hard):
+                note += "; " + _sliding_speed_words(sig, nominal)
         return Verdict("none", (), True, note, "the record matches the nominal model: no named effect", struct)
 
     top = earn[0]

@@ -87,6 +87,18 @@ def test_a_seal_friction_on_the_papers_sine_is_unexplained_not_a_load_offset():
     assert "grows with pressure" in res.note, res.note
 
 
+def test_a_stribeck_hump_that_cannot_be_excluded_comes_with_the_records_sliding_speeds():
+    # the paper's sine at fault-grade health slides slower than the hump fades: the note says so
+    import re
+
+    s, cfg = _record("clean", {}, "paper-id", 0.9, "realistic", 30)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "none", (res.cause, res.note)
+    m = re.search(r"slides at ([0-9.]+) mm/s at the median and faster than 20 mm/s in ([0-9]+) %", res.note)
+    assert m and "cannot be excluded: stribeck_friction" in res.note, res.note
+    assert float(m.group(1)) < 5.0 and int(m.group(2)) < 10, res.note
+
+
 def test_a_residual_share_that_follows_no_measured_signal_is_not_called_structure():
     from monitor.audit.decide import STRUCTURE, STRUCTURE_R, _structure_words
 

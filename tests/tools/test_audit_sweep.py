@@ -6,8 +6,8 @@ from collections import Counter
 
 import pytest
 
-from hydromon.tools.audit_sweep import (BANDS, CLAIMS, LADDER, LADDER_SEED, NOISES, PROFILES, _cases,
-                                        _ladder_cases, main)
+from hydromon.tools.audit_sweep import (BANDS, CLAIMS, CLEAN_SEED, LADDER, LADDER_SEED, NOISES, PROFILES,
+                                        _cases, _clean_cases, _ladder_cases, main)
 
 
 @pytest.mark.parametrize("name", sorted(CLAIMS))
@@ -22,8 +22,25 @@ def test_a_ladder_puts_every_multiple_of_the_claim_on_every_profile_band_and_noi
     assert all(kind == "one" and list(effects) == [name] for kind, effects, *_ in cases)
 
 
-def test_ladder_seeds_do_not_meet_the_main_sweeps_at_the_same_base():
+def test_ladder_and_clean_seeds_do_not_meet_each_other_or_the_main_sweeps_at_the_same_base():
     assert LADDER_SEED > len(_cases())
+    assert CLEAN_SEED > LADDER_SEED + max(len(_ladder_cases(n)) for n in CLAIMS)
+
+
+def test_clean_repeats_cover_every_profile_band_and_noise_level_including_stress():
+    cases = _clean_cases(3)
+    cells = Counter((profile, severity, noise) for kind, effects, profile, severity, noise, _ in cases)
+    assert set(cells) == {(p, s, n) for p in PROFILES for s in BANDS for n in NOISES + ("stress",)}
+    assert set(cells.values()) == {3}
+    assert all(kind == "clean" and effects == {} for kind, effects, *_ in cases)
+
+
+@pytest.mark.parametrize("argv", [["--clean", "0"], ["--clean", "2", "--ladder", "load_offset"]])
+def test_a_clean_sweep_of_no_records_or_beside_a_ladder_is_refused(argv, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    assert "--clean takes N >= 1" in capsys.readouterr().err
 
 
 def test_a_ladder_of_no_known_effect_is_refused(capsys):
