@@ -1,9 +1,10 @@
 """The audit's sweep: every effect on every input profile, health band and noise level.
 
-``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick] [--only NAME]`` prints the
-tables of ``docs/audit.md``. Every record is 20 s at 100 Hz from ``plant_sim``; its seed is
-``BASE[seeds] + its index`` in the fixed list below (the ``tune`` seeds were used to set the
-audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen):
+``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]
+[--only NAME | --ladder NAME | --clean N]`` prints the tables of ``docs/audit.md``. Every record
+is 20 s at 100 Hz from ``plant_sim``; its seed is ``BASE[seeds] + its index`` in the fixed list
+below (the ``tune`` seeds were used to set the audit's thresholds, the ``heldout`` seeds were
+fixed before any result on them was seen):
 
 * one effect: each of the seven effects on each of the four profiles (the paper's sine
   ``paper-id``, its variable-condition input ``paper-var``, ``steps``, ``multisine``) at
@@ -172,7 +173,8 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--quick", action="store_true", help="every 7th record only (a smoke run)")
     ap.add_argument("--verbose", action="store_true", help="print every record as it is audited")
-    ap.add_argument("--only", default=None, help="only the records of this effect, or of this kind (clean, pair, outside)")
+    ap.add_argument("--only", default=None,
+                    help="only the records of this effect, or of this kind (clean, pair, outside)")
     ap.add_argument("--ladder", default=None, choices=tuple(CLAIMS),
                     help="sweep this effect at 1, 2, 4 and 8 times its claimed limit on every profile and band")
     ap.add_argument("--clean", type=int, default=None, metavar="N",
@@ -264,7 +266,8 @@ def _print_ladder(name, cases, results, base, wall):
         for f in LADDER:
             cells, tot, n = [], 0, 0
             for p in PROFILES:
-                idx = [i for i in results if cases[i][4] == noise and cases[i][5] == f"{f}x limit" and cases[i][2] == p]
+                idx = [i for i in results
+                       if cases[i][4] == noise and cases[i][5] == f"{f}x limit" and cases[i][2] == p]
                 k = sum(right(i) for i in idx)
                 cells.append(f"{k}/{len(idx)}" if idx else "-")
                 tot, n = tot + k, n + len(idx)
