@@ -126,7 +126,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
         the rigs start: something else on the demo's session (the command line's dashboard);
         ``lines`` are printed on ``log`` and above the table, ``close()`` is called at the end.
     """
-    from monitor.pipeline import warm_up
+    from hydromon.engine.warm import warm_up
     from hydromon.engine.core import MonitorCore
     from hydromon.engine.watches import RateLimitedLog
     from hydromon.bus.monitor import log_rig_warning, run_monitor

@@ -33,7 +33,7 @@ from hydromon.engine.core import MonitorCore
 from hydromon.engine.watches import BacklogWatch, RateLimitedLog, SilenceWatch
 from hydromon.store.ranges_dir import RangesDir
 from hydromon.store.state_dir import StateDir
-from monitor.pipeline import warm_up
+from hydromon.engine.warm import warm_up
 
 __all__ = ["log_rig_warning", "rig_pattern", "run_monitor"]
 

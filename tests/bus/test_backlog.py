@@ -13,7 +13,7 @@ from hydromon.bus.monitor import run_monitor
 from hydromon.bus.session import listening_session, open_session
 from hydromon.engine.core import MonitorCore
 from hydromon.engine.watches import BacklogWatch
-from monitor.pipeline import warm_up
+from hydromon.engine.warm import warm_up
 
 
 def test_full_batches_for_a_while_are_told_once_and_the_catch_up_after():
