@@ -217,6 +217,25 @@ def main(argv=None):
           f"load offset 1000 N: {secs:.1f} s wall (cause: {cause}).")
 
 
+def _profile_cells(results, right, in_row) -> str:
+    """A table row's cells: records named right of those ``in_row(i, profile)`` holds, per profile, then all."""
+    cells, tot, n = [], 0, 0
+    for p in PROFILES:
+        idx = [i for i in results if in_row(i, p)]
+        k = sum(right(i) for i in idx)
+        cells.append(f"{k}/{len(idx)}" if idx else "-")
+        tot, n = tot + k, n + len(idx)
+    return " | ".join(cells) + f" | {tot}/{n} |"
+
+
+def _print_listed(title, indices, cases, results, describe):
+    """The records of ``indices`` and what each was named, ``describe(case)`` saying which record."""
+    if indices:
+        print(f"\n{title} (index: record -> named):")
+        for i in indices:
+            print(f"- {i}: {describe(*cases[i])} -> {', '.join(results[i][0])}")
+
+
 def _print_tables(cases, results, seeds, base, wall):
     right = lambda i: results[i][0] == results[i][1]  # noqa: E731
     print(f"Audit sweep, seeds '{seeds}' (base {base}), {len(results)} records of {DURATION:g} s, "
@@ -226,15 +245,9 @@ def _print_tables(cases, results, seeds, base, wall):
     print("|---|---|---|---|" + "---|" * (len(PROFILES) + 1))
     for name, (unit, lim, large, _) in CLAIMS.items():
         for step in STEPS:
-            cells, tot, n = [], 0, 0
-            for p in PROFILES:
-                idx = [i for i in results if cases[i][0] == "one" and name in cases[i][1] and cases[i][2] == p
-                       and cases[i][5] == step]
-                k = sum(right(i) for i in idx)
-                cells.append(f"{k}/{len(idx)}" if idx else "-")
-                tot, n = tot + k, n + len(idx)
-            print(f"| {name} | {unit} | {lim['none']:g} / {lim['realistic']:g} | {step} | " + " | ".join(cells)
-                  + f" | {tot}/{n} |")
+            row = _profile_cells(results, right, lambda i, p: cases[i][0] == "one" and name in cases[i][1]
+                                 and cases[i][2] == p and cases[i][5] == step)
+            print(f"| {name} | {unit} | {lim['none']:g} / {lim['realistic']:g} | {step} | " + row)
     for kind, label in (("one", "one effect, all"), ("clean", "clean (named 'none')"),
                         ("pair", "two effects (both named)"), ("outside", "outside the library ('unexplained')")):
         idx = [i for i in results if cases[i][0] == kind]
@@ -247,12 +260,9 @@ def _print_tables(cases, results, seeds, base, wall):
         print(f"\n{label}: {sum(right(i) for i in idx)}/{len(idx)} right ({parts})")
     clean_named = [i for i in results if cases[i][0] == "clean" and results[i][0] != ["none"]]
     print(f"clean records named as an effect or unexplained: {len(clean_named)}")
-    wrong = [i for i in sorted(results) if not right(i)]
-    if wrong:
-        print("\nWrong answers (index: record -> named):")
-        for i in wrong:
-            kind, effects, profile, severity, noise, step = cases[i]
-            print(f"- {i}: {kind} {effects} {profile} severity {severity} {noise} {step} -> {', '.join(results[i][0])}")
+    _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
+                  lambda kind, effects, profile, severity, noise, step:
+                  f"{kind} {effects} {profile} severity {severity} {noise} {step}")
 
 
 def _print_ladder(name, cases, results, base, wall):
@@ -264,20 +274,12 @@ def _print_ladder(name, cases, results, base, wall):
     right = lambda i: results[i][0] == results[i][1]  # noqa: E731
     for noise in NOISES:
         for f in LADDER:
-            cells, tot, n = [], 0, 0
-            for p in PROFILES:
-                idx = [i for i in results
-                       if cases[i][4] == noise and cases[i][5] == f"{f}x limit" and cases[i][2] == p]
-                k = sum(right(i) for i in idx)
-                cells.append(f"{k}/{len(idx)}" if idx else "-")
-                tot, n = tot + k, n + len(idx)
-            print(f"| {noise} | {CLAIMS[name][1][noise] * f:g} | {f} | " + " | ".join(cells) + f" | {tot}/{n} |")
-    wrong = [i for i in sorted(results) if not right(i)]
-    if wrong:
-        print("\nWrong answers (index: record -> named):")
-        for i in wrong:
-            kind, effects, profile, severity, noise, step = cases[i]
-            print(f"- {i}: {effects} {profile} severity {severity} {noise} -> {', '.join(results[i][0])}")
+            row = _profile_cells(results, right, lambda i, p: cases[i][4] == noise
+                                 and cases[i][5] == f"{f}x limit" and cases[i][2] == p)
+            print(f"| {noise} | {CLAIMS[name][1][noise] * f:g} | {f} | " + row)
+    _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
+                  lambda kind, effects, profile, severity, noise, step:
+                  f"{effects} {profile} severity {severity} {noise}")
 
 
 def _print_clean(cases, results, base, wall):
@@ -290,12 +292,9 @@ def _print_clean(cases, results, base, wall):
         named = sum(g not in (["none"], ["unexplained"], ["refused"]) for g in got)
         print(f"| {noise} | {got.count(['none'])}/{len(got)} | {named} | {got.count(['unexplained'])} | "
               f"{got.count(['refused'])} |")
-    wrong = [i for i in sorted(results) if results[i][0] != ["none"]]
-    if wrong:
-        print("\nNot none (index: record -> named):")
-        for i in wrong:
-            kind, effects, profile, severity, noise, step = cases[i]
-            print(f"- {i}: {profile} severity {severity} {noise} {step} -> {', '.join(results[i][0])}")
+    _print_listed("Not none", [i for i in sorted(results) if results[i][0] != ["none"]], cases, results,
+                  lambda kind, effects, profile, severity, noise, step:
+                  f"{profile} severity {severity} {noise} {step}")
 
 
 def _time_60s():
