@@ -1,10 +1,16 @@
 """The audit's sweep: every effect on every input profile, health band and noise level.
 
 ``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]
-[--only NAME | --ladder NAME | --clean N]`` prints the tables of ``docs/audit.md``. Every record
-is 20 s at 100 Hz from ``plant_sim``; its seed is ``BASE[seeds] + its index`` in the fixed list
-below (the ``tune`` seeds were used to set the audit's thresholds, the ``heldout`` seeds were
-fixed before any result on them was seen):
+[--fixed] [--only NAME | --ladder NAME | --clean N]`` prints the tables of ``docs/audit.md``. Every
+record is 20 s at 100 Hz from ``plant_sim``; its seed is ``BASE[seeds] + its index`` in the fixed
+list below (the ``tune`` seeds were used to set the audit's thresholds, the ``heldout`` seeds were
+fixed before any result on them was seen). The seed draws the record's noise and also its own
+input and health (``_drawn``): the profile's parameters around their defaults (the sine's offset,
+amplitude and frequency; the variable input's period; the steps' levels and period; the
+multisine's offset, amplitude and frequency scale) and the severity within its band. A noise-free
+record on a default input is the same for every seed, so without the draw a base held out would
+hold out only the noise; ``--fixed`` keeps every record on its profile's defaults at its band's
+centre.
 
 * one effect: each of the seven effects on each of the four profiles (the paper's sine
   ``paper-id``, its variable-condition input ``paper-var``, ``steps``, ``multisine``) at
@@ -72,6 +78,7 @@ CLEAN_SEED = 20_000  # a --clean record's seed is the base plus this plus its in
 PAIRS = (("entrained_air", 0.04, "load_offset", 800.0), ("valve_dead_band", 20.0, "load_offset", -800.0),
          ("sensor_delay", 3, "entrained_air", 0.04))
 OUTSIDE = ("pi_loop", "pressure_gain", "seal_friction")
+SEV_JITTER = 0.08  # a record's severity lies within this of its band's centre (bands are 0.2 wide)
 SEAL = 1e-4  # [m^2] the seal friction's c_p: 300 N at the records' typical 3 MPa across the piston
 
 
@@ -142,18 +149,43 @@ def _record(kind, effects, profile, severity, noise, seed, duration=DURATION):
     return s, run.config
 
 
+def _drawn(profile, severity, seed):
+    """The record's own input and health, drawn from its seed: the profile's parameters around
+    their defaults and the severity within its band (``BANDS`` +- ``SEV_JITTER``). Without it, a
+    noise-free record would be the same on every seed base, and a base held out would hold out
+    only noise. Returns (profile spec for ``parse_profile``, severity)."""
+    rng = np.random.default_rng([seed, 7])  # its own stream: the noise uses the seed itself
+    u = lambda lo, hi: float(rng.uniform(lo, hi))  # noqa: E731
+    if profile == "paper-id":
+        spec = f"paper-id:offset={u(1.7, 2.3):.3f},amplitude={u(0.6, 1.3):.3f},freq={u(0.5, 1.5):.3f}"
+    elif profile == "paper-var":
+        spec = f"paper-var:period={u(6.0, 14.0):.3f}"
+    elif profile == "steps":
+        spec = f"steps:low={u(1.2, 1.8):.3f},high={u(2.2, 2.8):.3f},period={u(1.2, 3.0):.3f}"
+    elif profile == "multisine":
+        k = u(0.7, 1.3)
+        freqs = "/".join(f"{f * k:.3f}" for f in (0.3, 0.7, 1.3, 2.9, 4.1))
+        spec = f"multisine:offset={u(1.8, 2.2):.3f},amplitude={u(0.5, 1.0):.3f},freqs={freqs}"
+    else:
+        raise ValueError(f"no drawn variant of profile {profile!r}")
+    return spec, round(severity + u(-SEV_JITTER, SEV_JITTER), 3)
+
+
 def _audit_one(args):
     from monitor.audit import AuditOptions, audit
 
-    i, case, seed = args
+    i, case, seed, fixed = args
     kind, effects, profile, severity, noise, step = case
+    if not fixed:
+        profile, severity = _drawn(profile, severity, seed)
+    drawn = f"{profile} severity {severity}"
     s, cfg = _record(kind, effects, profile, severity, noise, seed)
     try:
         res = audit(s, cfg, AuditOptions(free_run=False))
     except ValueError as e:  # a record the audit refuses (as the CLI would, exit 2) is a wrong answer
-        return i, ["refused"], _truth(kind, effects), str(e)
+        return i, ["refused"], _truth(kind, effects), str(e), drawn
     named = sorted(res.causes) if res.causes else [res.cause]
-    return i, named, _truth(kind, effects), res.note
+    return i, named, _truth(kind, effects), res.note, drawn
 
 
 def _truth(kind, effects):
@@ -179,30 +211,32 @@ def main(argv=None):
                     help="sweep this effect at 1, 2, 4 and 8 times its claimed limit on every profile and band")
     ap.add_argument("--clean", type=int, default=None, metavar="N",
                     help="audit N clean records per profile, band and noise level instead")
+    ap.add_argument("--fixed", action="store_true",
+                    help="every record on its profile's default parameters at its band's centre (no draw)")
     args = ap.parse_args(argv)
     if args.clean is not None and (args.clean < 1 or args.ladder):
         ap.error("--clean takes N >= 1, and not with --ladder")
     base = BASE[args.seeds] if args.seed_base is None else args.seed_base
     if args.ladder:
         cases = _ladder_cases(args.ladder)
-        todo = [(i, c, base + LADDER_SEED + i) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
+        todo = [(i, c, base + LADDER_SEED + i, args.fixed) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
     elif args.clean:
         cases = _clean_cases(args.clean)
-        todo = [(i, c, base + CLEAN_SEED + i) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
+        todo = [(i, c, base + CLEAN_SEED + i, args.fixed) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
     else:
         cases = _cases()
-        todo = [(i, c, base + i) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
+        todo = [(i, c, base + i, args.fixed) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
                 and (args.only is None or args.only == c[0] or args.only in c[1])]
     t0 = time.perf_counter()
     results = {}
     pool = ProcessPoolExecutor(args.jobs) if args.jobs > 1 else None
     it = pool.map(_audit_one, todo) if pool else map(_audit_one, todo)
-    for i, named, truth, note in it:
-        results[i] = (named, truth, note)
+    for i, named, truth, note, drawn in it:
+        results[i] = (named, truth, note, drawn)
         if args.verbose:
             kind, effects, profile, severity, noise, step = cases[i]
             mark = "ok " if named == truth else "BAD"
-            print(f"{mark} {i:3d} {kind:7s} {effects} {profile} sev {severity} {noise} {step}: {named}"
+            print(f"{mark} {i:3d} {kind:7s} {effects} {drawn} {noise} {step}: {named}"
                   + ("" if named == truth else f"  ({note[:160]})"), flush=True)
     wall = time.perf_counter() - t0
     if args.ladder:
@@ -233,7 +267,7 @@ def _print_listed(title, indices, cases, results, describe):
     if indices:
         print(f"\n{title} (index: record -> named):")
         for i in indices:
-            print(f"- {i}: {describe(*cases[i])} -> {', '.join(results[i][0])}")
+            print(f"- {i}: {describe(*cases[i])} -> {', '.join(results[i][0])}  ({results[i][3]})")
 
 
 def _print_tables(cases, results, seeds, base, wall):

@@ -48,3 +48,34 @@ def test_a_ladder_of_no_known_effect_is_refused(capsys):
         main(["--ladder", "gravity"])
     assert e.value.code == 2
     assert "invalid choice" in capsys.readouterr().err
+
+
+def test_a_records_input_and_health_are_drawn_from_its_seed_within_its_band():
+    from plant_sim.degradation import grade_of_severity
+    from plant_sim.profiles import parse_profile
+
+    from hydromon.tools.audit_sweep import SEV_JITTER, _drawn
+
+    for profile in PROFILES:
+        for sev in BANDS:
+            draws = [_drawn(profile, sev, seed) for seed in range(8100000, 8100040)]
+            assert _drawn(profile, sev, 8100000) == draws[0]  # a pure function of the seed
+            assert len({spec for spec, _ in draws}) == len(draws)  # every seed its own input
+            for spec, s in draws:
+                assert parse_profile(spec).name == profile
+                assert abs(s - sev) <= SEV_JITTER + 1e-9
+                assert grade_of_severity(s) == grade_of_severity(sev)
+    with pytest.raises(ValueError, match="chirp"):
+        _drawn("chirp", 0.1, 1)
+
+
+def test_a_drawn_record_differs_from_the_fixed_one_without_noise():
+    """Noise-free records on the default inputs are the same for every seed; drawn ones are not."""
+    import numpy as np
+
+    from hydromon.tools.audit_sweep import _drawn, _record
+
+    fixed = [_record("clean", {}, "steps", 0.5, "none", seed, duration=2.0)[0] for seed in (1, 2)]
+    assert np.array_equal(fixed[0], fixed[1])
+    drawn = [_record("clean", {}, *_drawn("steps", 0.5, seed), "none", seed, duration=2.0)[0] for seed in (1, 2)]
+    assert not np.array_equal(drawn[0], drawn[1])
