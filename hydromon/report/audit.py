@@ -49,6 +49,10 @@ def to_json(result) -> dict:
         "gain": result.gain,
         "params_nominal": result.params_nominal,
         "params_extended": ext,
+        # the smallest Stribeck hump this record would have named [N]: null when not asked (a
+        # cause was named, or Stribeck friction was excluded), "beyond" past the largest tried
+        "stribeck_reach_N": (None if result.stribeck_reach is None else
+                             "beyond" if math.isinf(result.stribeck_reach) else result.stribeck_reach),
     })
 
 

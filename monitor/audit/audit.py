@@ -47,6 +47,7 @@ from .residuals import BLOCKS, Fit, build_blocks, fit_blocks, merge_specs, nomin
 from .verdict import EQUATION_OF, POSITIVE_AUDIT, impossible_params  # noqa: F401  (re-exported)
 from .decide import decide
 from .probe import probe_fits
+from .reach import stribeck_reach
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
 
@@ -188,6 +189,10 @@ class AuditResult:
     """False when the nominal fit is impossible and no candidate restores it."""
     effect: dict = field(default_factory=dict)
     """Every named cause's fitted extension, fitted together when two are named (``Effects`` fields, SI)."""
+    stribeck_reach: float | None = None
+    """When nothing is named and Stribeck friction cannot be excluded: the smallest hump [N above
+    Coulomb, v_s = 10 mm/s] this record would have named (``monitor.audit.reach``), ``inf`` when
+    none up to 2560 N would; None when not asked."""
 
     @property
     def best(self) -> CandidateResult | None:
@@ -415,10 +420,19 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     def probe(names):
         return probe_fits(names, fits, sig, cfg, split, theta0, cache, nominal, floors, opt.penalty)
 
-    verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe)
+    def score_of(nom_fit, ext_fit):
+        fl = _floors(nom_fit, split)
+        (ntr, nte), (tr, te) = _mse_split(nom_fit, split, fl), _mse_split(ext_fit, split, fl)
+        return _log_ratio(ntr, tr), _log_ratio(nte, te)
+
+    def reach():  # asked only when Stribeck friction was ranked, so is in the library
+        return stribeck_reach(sig, cfg, split, cfg.h, opt.threshold, opt.penalty, score_of, cache)
+
+    verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe, reach)
     return AuditResult(
         cause=verdict.cause, causes=verdict.causes, confident=verdict.confident, note=verdict.note,
         words=verdict.words, structure=verdict.structure, obeys=verdict.obeys, effect=verdict.effect,
+        stribeck_reach=verdict.stribeck_reach,
         candidates=results, params_nominal=p_nom,
         freerun_nominal=fr_nom or {}, residual_var_nominal=nom_te, split=split,
         t=np.arange(sig.n) * cfg.h, measured=measured, simulated_nominal=sim_nom,

@@ -4,11 +4,13 @@ The identified parameters (bus names, ``hydromon.contract.PARAM_NAMES``) become 
 ``plant_sim`` plant: m, B = B_fv with f_v = 0, f_c, K_t, beta_e = 1/inv_beta_e,
 C_d W/sqrt(rho) (C_d = 0.6, rho = 880 chosen, W solved), C_ip, C_ep,
 omega_sv = sqrt(omega_sv2), zeta_sv = two_zeta_omega / (2 omega_sv),
-K_sv (K_sv_omega_sv2 / omega_sv2 where it is missing). A value outside the physical domain (an unidentifiable
-parameter, e.g. the mass of a piston that barely moves, estimated <= 0) takes the fallback
-model's value when that one is valid, else the domain's edge (listed in ``FreeRun.clamped``). The run starts from the measured first sample and is
-driven by the measured ug (linearly interpolated inside sample periods); nothing measured
-after t_0 enters it except ug.
+K_sv (K_sv_omega_sv2 / omega_sv2 where it is missing). A value outside the physical domain (an
+unidentifiable parameter, e.g. the mass of a piston that barely moves, estimated <= 0) takes the
+fallback model's value when that one is valid, else the domain's edge; a mass below the smallest
+one the integrator's step resolves (``stable_mass``) takes that one (each listed in
+``FreeRun.clamped``). The run starts from the measured first sample and is driven by the
+measured ug (linearly interpolated inside sample periods); nothing measured after t_0 enters it
+except ug.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from plant_sim.params import Effects, PlantParams, plant_vector
 from plant_sim.profiles import FromFile
 from plant_sim.simulate import command_grid
 
-__all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "SENSORS"]
+__all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "stable_mass", "SENSORS"]
 
 _RHO, _CD = 880.0, 0.6
 
@@ -71,6 +73,23 @@ def plant_from_params(params: dict, fallback: dict | None = None) -> tuple[Plant
     return p, clamped
 
 
+# RK4's stability limits for a real pole (h lambda >= -2.785) and an undamped mode (h omega <= 2.828)
+_RK4_REAL, _RK4_IMAG = 2.785, 2.828
+
+
+def stable_mass(plant: PlantParams, config: RigConfig, dt: float) -> float:
+    """The smallest moving mass [kg] whose mechanical poles an RK4 step of ``dt`` [s] integrates
+    stably, with a margin of 2 on each: the viscous pole -(B + f_v)/m and the stiffest spring's
+    frequency sqrt((K_oil + K_t)/m), K_oil = beta_e (A1^2/V10 + A2^2/V20) [N/m].
+
+    A mass the identification cannot resolve (estimated <= 0 at fault-grade health, where the
+    piston barely accelerates) gets a floor; 1 kg against 5700 N s/m of damping put the viscous
+    pole at -5.7 per 1 ms step, and the free run of a right model diverged.
+    """
+    k = plant.beta_e * (config.A1 ** 2 / config.V10 + config.A2 ** 2 / config.V20) + plant.K_t
+    return max(2.0 * (plant.B + plant.f_v) * dt / _RK4_REAL, k * (2.0 * dt / _RK4_IMAG) ** 2)
+
+
 @dataclass(frozen=True)
 class FreeRun:
     """A free-run simulation aligned with the record.
@@ -106,6 +125,10 @@ def free_run(samples: np.ndarray, config: RigConfig, params: dict, effects: Effe
     s = np.asarray(samples, dtype=float)
     n = len(s)
     plant, clamped = plant_from_params(params, fallback)
+    m_min = stable_mass(plant, config, config.h / substeps)
+    if plant.m < m_min:
+        plant = plant.model_copy(update={"m": m_min})
+        clamped = [*clamped, "m"] if "m" not in clamped else clamped
     eff = effects or Effects()
     vec = plant_vector(config, plant, eff)
     h = config.h

@@ -87,3 +87,24 @@ def test_savgol_and_the_valve_filter_are_scipys(seed, n, window, cols):
     b, a = _valve_filter(float(rng.uniform(20, 600)), float(rng.uniform(0.15, 1.5)), 0.01)
     u = x if x.ndim == 1 else x[:, 0]
     np.testing.assert_allclose(_filter2(b, a, u), lfilter(b, a, u), rtol=0, atol=1e-9 * np.max(np.abs(u)))
+
+
+def test_a_free_run_holds_a_mass_it_cannot_integrate_at_the_smallest_stable_one():
+    """A mass estimated <= 0 (fault-grade health: the piston barely accelerates) falls back to a
+    floor; at 1 kg against the paper's 6000 N s/m the viscous pole left RK4's stability region and
+    the free run of an otherwise right model diverged."""
+    from monitor.audit.freerun import stable_mass
+    from plant_sim.integrate import DEFAULT_SUBSTEPS
+    from plant_sim.params import PlantParams
+
+    run = simulate(parse_profile("paper-id"), 5.0, params=degrade(0.3))
+    cfg = run.config
+    true = run.params.identified()
+    dt = cfg.h / DEFAULT_SUBSTEPS
+    floor = stable_mass(PlantParams(**{**run.params.model_dump(), "m": 1.0}), cfg, dt)
+    assert 1.0 < floor < true["m"]
+    for m in (1.0, -50.0):
+        fr = free_run(run.samples, cfg, {**true, "m": m})
+        assert not fr.diverged and "m" in fr.clamped
+        assert channel_scores(run.samples[:, 1:], fr.measured, slice(0, None))["x1"]["nrmse"] < 0.05
+    assert free_run(run.samples, cfg, true).clamped == ()
