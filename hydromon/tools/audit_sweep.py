@@ -230,14 +230,18 @@ def main(argv=None):
     t0 = time.perf_counter()
     results = {}
     pool = ProcessPoolExecutor(args.jobs) if args.jobs > 1 else None
-    it = pool.map(_audit_one, todo) if pool else map(_audit_one, todo)
-    for i, named, truth, note, drawn in it:
-        results[i] = (named, truth, note, drawn)
-        if args.verbose:
-            kind, effects, profile, severity, noise, step = cases[i]
-            mark = "ok " if named == truth else "BAD"
-            print(f"{mark} {i:3d} {kind:7s} {effects} {drawn} {noise} {step}: {named}"
-                  + ("" if named == truth else f"  ({note[:160]})"), flush=True)
+    try:
+        it = pool.map(_audit_one, todo) if pool else map(_audit_one, todo)
+        for i, named, truth, note, drawn in it:
+            results[i] = (named, truth, note, drawn)
+            if args.verbose:
+                kind, effects, profile, severity, noise, step = cases[i]
+                mark = "ok " if named == truth else "BAD"
+                print(f"{mark} {i:3d} {kind:7s} {effects} {drawn} {noise} {step}: {named}"
+                      + ("" if named == truth else f"  ({note[:160]})"), flush=True)
+    finally:
+        if pool is not None:  # its workers stop before the interpreter does (else a stray OSError at exit)
+            pool.shutdown()
     wall = time.perf_counter() - t0
     if args.ladder:
         _print_ladder(args.ladder, cases, results, base, wall)
