@@ -112,6 +112,8 @@ class CandidateResult:
         The identified parameters of the extended model (bus names, SI).
     effect : dict
         The fitted extension as ``plant_sim.params.Effects`` fields.
+    plausible : bool
+        Whether the simulated extension is one the candidate stands for (``Candidate.plausible``).
     """
 
     name: str
@@ -125,6 +127,7 @@ class CandidateResult:
     params: dict
     effect: dict
     caveat: str = ""
+    plausible: bool = True
     simulated: np.ndarray | None = field(default=None, repr=False, compare=False)
     residuals: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -394,7 +397,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             name=cand.name, equation=cand.equation, value=value, score=float(score),
             residual_ratio={g: te[g] / nom_te[g] if nom_te[g] > 0 else 1.0 for g in BLOCKS},
             train_ratio={g: tr[g] / nom_tr[g] if nom_tr[g] > 0 else 1.0 for g in BLOCKS},
-            gain=float(gain), freerun=fr, params=params, effect=effect, caveat=cand.caveat, simulated=sim,
+            gain=float(gain), freerun=fr, params=params, effect=effect, caveat=cand.caveat,
+            plausible=cand.plausible(effect), simulated=sim,
             residuals={g: (fit.blocks[g].rows, fit.residuals[g]) for g in BLOCKS}))
         fits[cand.name] = (cand, value, fit)
     if progress is not None:

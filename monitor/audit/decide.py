@@ -6,7 +6,9 @@ Rules (scores as in ``monitor.audit.audit``, threshold ``opt.threshold``):
    threshold for a candidate with a caveat: Stribeck friction) and its free run simulates the
    held-out part no worse than ``GAIN_FLOOR`` allows (a model that cannot simulate the record
    explains nothing: clean stress-noise records were named for a residual variance that only
-   the extension's larger predicted noise share had lowered). When the
+   the extension's larger predicted noise share had lowered), and the simulated extension is
+   still the effect its candidate stands for (``Candidate.plausible``: a Stribeck hump fading
+   over at most 40 mm/s). When the
    nominal identification is impossible (a non-positive 1/beta_e, C_d W/sqrt(rho) or K_sv: the
    paper's equations cannot hold), a candidate must also restore a plausible identification and
    simulate the held-out part better than the nominal model (free-run gain > 0): equation error
@@ -181,7 +183,23 @@ def _reach_words(f_reach: float) -> str:
     v_s = f"v_s = {1e3 * REACH_V_S:.0f} mm/s"
     if math.isinf(f_reach):
         return f"on this record's motion and noise no hump up to {REACH_GRID[-1]:.0f} N ({v_s}) would have been named"
-    return f"on this record's motion and noise a hump of at least {f_reach:.0f} N above Coulomb ({v_s}) would have been named"
+    return (f"on this record's motion and noise a hump of at least {f_reach:.0f} N above Coulomb ({v_s}) "
+            "would have been named")
+
+
+def _passed_over_words(c) -> str:
+    """Why a candidate that scored above its threshold was not named."""
+    head = f"{c.name} scores {c.score:.2f}"
+    if not c.plausible and "stribeck_v_s" in c.effect:
+        return (f"{head}, but its simulated hump fades over {1e3 * c.effect['stribeck_v_s']:.0f} mm/s: a friction "
+                f"level, not a breakaway hump (at most {1e3 * StribeckFriction.V_S_MAX:.0f} mm/s)")
+    if not c.plausible:
+        return f"{head}, but its simulated extension is not the effect it stands for"
+    if c.gain == -math.inf:
+        return f"{head}, but its free run diverges"
+    if c.gain <= GAIN_FLOOR:
+        return f"{head}, but its free run errs {1.0 - c.gain:.1f} times as much as the nominal model's"
+    return f"{head}, but does not restore a plausible fit that simulates better"
 
 
 def _structure_words(struct: dict) -> str:
@@ -200,9 +218,10 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
     # health gave it scores just above the threshold
     need = {c.name: (2 * thr if c.caveat else thr) for c in results}
     if impossible:
-        earn = [c for c in results if c.score > need[c.name] and not impossible_params(c.params) and c.gain > 0]
+        earn = [c for c in results if c.score > need[c.name] and not impossible_params(c.params) and c.gain > 0
+                and c.plausible]
     else:
-        earn = [c for c in results if c.score > need[c.name] and c.gain > GAIN_FLOOR]
+        earn = [c for c in results if c.score > need[c.name] and c.gain > GAIN_FLOOR and c.plausible]
     if not earn:
         struct = _structure(nominal, sig, split)
         if impossible:
@@ -220,7 +239,11 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         probed = _probed(probe, (), sig, split, results)
         if probed is not None:
             return probed
-        note = f"no extension earns its place (best {results[0].name} scores {results[0].score:.2f} <= {thr:g})"
+        passed = [c for c in results if c.score > need[c.name]]
+        if passed:
+            note = "no extension earns its place: " + "; ".join(_passed_over_words(c) for c in passed)
+        else:
+            note = f"no extension earns its place (best {results[0].name} scores {results[0].score:.2f} <= {thr:g})"
         weak = [c for c in results if thr / 3 < c.score <= need[c.name]]
         if weak:
             note += "; weak evidence for " + ", ".join(f"{c.name} ({c.score:.2f})" for c in weak)
@@ -243,7 +266,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
     # a second effect: the two fitted together must beat the first alone on held-out data
     best2 = None
     for c in results:  # alone, a second effect can score nothing: the first distorts the fit
-        if c is top or (impossible and c not in earn):  # (a 3-sample delay hides 4 % air: 0.003 alone, 3.8 as a pair)
+        # (a 3-sample delay hides 4 % air: 0.003 alone, 3.8 as a pair)
+        if c is top or not c.plausible or (impossible and c not in earn):
             continue
         got = pair(top.name, c.name)
         if got is not None and got[0] > SECOND * need[c.name] and (best2 is None or got[0] > best2[0]):

@@ -134,3 +134,15 @@ def test_a_load_offset_at_fault_grade_health_is_named_though_the_mass_is_not_ide
     off = next(c for c in res.candidates if c.name == "load_offset")
     assert off.params["m"] <= 0 and off.gain > 0.5, (off.params["m"], off.gain)
     assert res.causes == ("load_offset",), (res.causes, res.note)
+
+
+def test_a_stribeck_hump_simulated_to_fade_over_a_sliding_speed_is_not_named():
+    # a clean noise-free steps record in the fault band: the piston creeps at 1.6 mm/s between
+    # sticks, Stribeck friction scores 0.99, and its output-error refinement spreads the "hump"
+    # over 123 mm/s, far beyond any speed the piston reaches: a friction level, not a hump
+    s, cfg = _record("clean", {}, "steps:low=1.566,high=2.452,period=1.823", 0.844, "none", 8220071)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    hump = next(c for c in res.candidates if c.name == "stribeck_friction")
+    assert hump.score > 0.3 and not hump.plausible, (hump.score, hump.effect)
+    assert res.cause == "none", (res.cause, res.note)
+    assert "fades over 123 mm/s" in res.note, res.note
