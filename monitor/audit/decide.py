@@ -18,7 +18,8 @@ Rules (scores as in ``monitor.audit.audit``, threshold ``opt.threshold``):
    more than ``SECOND`` times the second's threshold on the held-out part (and on the training
    part); alone, the second need not score (the first distorts its fit). When the nominal fit
    is impossible, the second must earn its place alone as the first did. A close runner-up
-   makes the answer not confident.
+   makes the answer not confident, and names nothing when the winner's free run does not
+   simulate the held-out part better than the nominal model's (a tie no evidence breaks).
 3. ``unexplained`` when nothing is named but the final model's held-out residual keeps
    structure: in some equation, more variance beyond the sensor noise than ``STRUCTURE`` of
    that equation's left side (calibrated on clean records: see docs/audit.md), following a
@@ -280,6 +281,15 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         confident = False
         note = (f"cannot tell {top.name} from {', '.join(close)} (held-out scores "
                 f"{', '.join(f'{c.score:.2f}' for c in earn[:1 + len(close)])})")
+        if not top.gain > 0:
+            # a tie the free run does not break either: on clean noise-free records in the fault
+            # band a supply sag of about 1.3e8 Pa/(m^3/s) and entrained air tied at 0.17-0.21,
+            # each simulating 1-6 % worse than the nominal model; no right answer of the tuning
+            # sweeps was a tie with a free-run gain <= 0
+            note += (f"; and {top.name}'s free run simulates the held-out part no better than the nominal "
+                     f"model's (gain {top.gain:.3f}): nothing is named")
+            return Verdict("none", (), False, note, "no named effect: the record matches the nominal model as "
+                           "well as any extension", _structure(nominal, sig, split))
     if impossible:
         note = (note + "; " if note else "") + (
             "the nominal estimates are impossible (" + ", ".join(f"{READABLE[k]} = {p_nom[k]:.3g}" for k in impossible)

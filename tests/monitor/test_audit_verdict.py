@@ -146,3 +146,14 @@ def test_a_stribeck_hump_simulated_to_fade_over_a_sliding_speed_is_not_named():
     assert hump.score > 0.3 and not hump.plausible, (hump.score, hump.effect)
     assert res.cause == "none", (res.cause, res.note)
     assert "fades over 123 mm/s" in res.note, res.note
+
+
+def test_a_tie_that_the_free_run_does_not_break_names_nothing():
+    # a clean noise-free paper-var record in the fault band: a supply sag of about 1.3e8 and
+    # entrained air tie at 0.21, and neither simulates the held-out part better than the nominal
+    s, cfg = _record("clean", {}, "paper-var:period=6.674", 0.865, "none", 8220046)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    top = res.candidates[0]
+    assert top.score > 0.15 and top.gain <= 0, (top.name, top.score, top.gain)
+    assert res.cause == "none" and not res.confident, (res.cause, res.note)
+    assert "cannot tell" in res.note and "nothing is named" in res.note, res.note
