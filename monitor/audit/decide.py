@@ -235,7 +235,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         shape = _structure_words(struct)
         if shape:
             note = (f"no candidate of the library explains the residual: {shape}"
-                    f" (best candidate {results[0].name} scores {results[0].score:.2f} <= {thr:g})")
+                    f" (best candidate {results[0].name} scores {results[0].score:.2f} <= "
+                    f"{need[results[0].name]:g})")
             return Verdict("unexplained", (), True, note, note, struct)
         probed = _probed(probe, (), sig, split, results)
         if probed is not None:
@@ -244,7 +245,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         if passed:
             note = "no extension earns its place: " + "; ".join(_passed_over_words(c) for c in passed)
         else:
-            note = f"no extension earns its place (best {results[0].name} scores {results[0].score:.2f} <= {thr:g})"
+            best = results[0]
+            note = f"no extension earns its place (best {best.name} scores {best.score:.2f} <= {need[best.name]:g})"
         weak = [c for c in results if thr / 3 < c.score <= need[c.name]]
         if weak:
             note += "; weak evidence for " + ", ".join(f"{c.name} ({c.score:.2f})" for c in weak)
