@@ -430,7 +430,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         return _log_ratio(ntr, tr), _log_ratio(nte, te)
 
     def reach():  # asked only when Stribeck friction was ranked, so is in the library
-        return stribeck_reach(sig, cfg, split, cfg.h, opt.threshold, opt.penalty, score_of, cache)
+        return stribeck_reach(sig, cfg, split, cfg.h, nominal.blocks, theta0, opt.threshold, opt.penalty, score_of,
+                              cache)
 
     verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe, reach)
     return AuditResult(

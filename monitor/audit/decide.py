@@ -198,9 +198,8 @@ def _passed_over_words(c) -> str:
         return f"{head}, but its simulated extension is not the effect it stands for"
     if c.gain == -math.inf:
         return f"{head}, but its free run diverges"
-    if c.gain <= GAIN_FLOOR:
-        return f"{head}, but its free run errs {1.0 - c.gain:.1f} times as much as the nominal model's"
-    return f"{head}, but does not restore a plausible fit that simulates better"
+    # the one reason left outside an impossible nominal fit (which is answered before this)
+    return f"{head}, but its free run errs {1.0 - c.gain:.1f} times as much as the nominal model's"
 
 
 def _structure_words(struct: dict) -> str:

@@ -128,7 +128,8 @@ def free_run(samples: np.ndarray, config: RigConfig, params: dict, effects: Effe
     m_min = stable_mass(plant, config, config.h / substeps)
     if plant.m < m_min:
         plant = plant.model_copy(update={"m": m_min})
-        clamped = [*clamped, "m"] if "m" not in clamped else clamped
+        if "m" not in clamped:
+            clamped.append("m")
     eff = effects or Effects()
     vec = plant_vector(config, plant, eff)
     h = config.h

@@ -17,9 +17,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-
-from .candidates import StribeckFriction, _hump
-from .residuals import FORCE_WINDOW, Spec, build_blocks, fit_blocks, nominal_params
+from .candidates import StribeckFriction
+from .residuals import build_blocks, fit_blocks
 
 __all__ = ["REACH_GRID", "REACH_V_S", "stribeck_reach"]
 
@@ -30,8 +29,8 @@ REACH_V_S = 0.01
 """Stribeck velocity of the injected hump [m/s]."""
 
 
-def stribeck_reach(sig, cfg, split: int, h: float, threshold: float, penalty: float, score_of,
-                   cache: dict | None = None) -> float | None:
+def stribeck_reach(sig, cfg, split: int, h: float, base: dict, theta0: float, threshold: float, penalty: float,
+                   score_of, cache: dict | None = None) -> float | None:
     """The smallest hump of ``REACH_GRID`` [N] (Stribeck velocity ``REACH_V_S``) that this
     record's force equation would name, or None when none up to 2560 N would be.
 
@@ -44,6 +43,10 @@ def stribeck_reach(sig, cfg, split: int, h: float, threshold: float, penalty: fl
         First held-out sample.
     h : float
         Sample period [s].
+    base : dict
+        The nominal model's equation blocks (``build_blocks`` under ``Spec()``), as the audit built them.
+    theta0 : float
+        The nominal C_d W/sqrt(rho) the audit's candidates were built with.
     threshold, penalty : float
         The audit's threshold (Stribeck friction needs twice it) and per-parameter penalty [-].
     score_of : callable
@@ -53,16 +56,16 @@ def stribeck_reach(sig, cfg, split: int, h: float, threshold: float, penalty: fl
         The audit's valve-fit memo (the valve block does not change here).
     """
     cand = StribeckFriction()
-    base = build_blocks(sig, cfg, Spec())
-    theta0 = max(nominal_params(fit_blocks(base, split, h, cache))["CdW_sqrt_rho"], 1e-6)
-    ext = [build_blocks(sig, cfg, cand.spec(v), theta0) for v in cand.grid(sig)]
-    hump = sig.smooth(_hump(REACH_V_S)(sig, cfg, sig.x1l, sig.vl), FORCE_WINDOW)[base["force"].rows]
+    ext = {v: build_blocks(sig, cfg, cand.spec(v), theta0) for v in cand.grid(sig)}
+    # the injected hump is the candidate's own force column at REACH_V_S (one of its searched v_s)
+    force = ext[REACH_V_S]["force"]
+    hump = force.X[:, force.columns.index("F_s")]
     for f_s in REACH_GRID:
         def add(blocks):
             return {**blocks, "force": replace(blocks["force"], y=blocks["force"].y + f_s * hump)}
         nominal = fit_blocks(add(base), split, h, cache)
         best = None
-        for blocks in ext:
+        for blocks in ext.values():
             fit = fit_blocks(add(blocks), split, h, cache)
             train, held = score_of(nominal, fit)
             key = (cand.admissible(fit.theta), train)
