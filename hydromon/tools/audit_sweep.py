@@ -218,15 +218,13 @@ def main(argv=None):
         ap.error("--clean takes N >= 1, and not with --ladder")
     base = BASE[args.seeds] if args.seed_base is None else args.seed_base
     if args.ladder:
-        cases = _ladder_cases(args.ladder)
-        todo = [(i, c, base + LADDER_SEED + i, args.fixed) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
+        cases, first, only = _ladder_cases(args.ladder), base + LADDER_SEED, None
     elif args.clean:
-        cases = _clean_cases(args.clean)
-        todo = [(i, c, base + CLEAN_SEED + i, args.fixed) for i, c in enumerate(cases) if not args.quick or i % 7 == 0]
+        cases, first, only = _clean_cases(args.clean), base + CLEAN_SEED, None
     else:
-        cases = _cases()
-        todo = [(i, c, base + i, args.fixed) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
-                and (args.only is None or args.only == c[0] or args.only in c[1])]
+        cases, first, only = _cases(), base, args.only  # --only selects among the main list's records
+    todo = [(i, c, first + i, args.fixed) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
+            and (only is None or only == c[0] or only in c[1])]
     t0 = time.perf_counter()
     results = {}
     pool = ProcessPoolExecutor(args.jobs) if args.jobs > 1 else None
