@@ -21,10 +21,10 @@ from .residuals import Spec, build_blocks, fit_blocks, merge_specs
 __all__ = ["PROBES", "probe_fits"]
 
 PROBES = {
-    "pressure": {"probe_1": lambda sig, cfg, x1, v: np.ones_like(v),
-                 "probe_pressure_level": lambda sig, cfg, x1, v: cfg.A1 * sig.x3 + cfg.A2 * sig.x4},
-    "friction": {"probe_1": lambda sig, cfg, x1, v: np.ones_like(v),
-                 "probe_sign_v_dp": lambda sig, cfg, x1, v: np.sign(v) * cfg.A1 * np.abs(sig.x3 - sig.x4)},
+    "pressure": {"probe_1": lambda sig, cfg, x1, v, vs: np.ones_like(v),
+                 "probe_pressure_level": lambda sig, cfg, x1, v, vs: cfg.A1 * sig.x3 + cfg.A2 * sig.x4},
+    "friction": {"probe_1": lambda sig, cfg, x1, v, vs: np.ones_like(v),
+                 "probe_sign_v_dp": lambda sig, cfg, x1, v, vs: np.sign(v) * cfg.A1 * np.abs(sig.x3 - sig.x4)},
 }
 """Force-equation columns of measured signals that no candidate of the library has [N per unit],
 in two families: a constant and the chamber pressure forces' sum A1 x3 + A2 x4 (with the left

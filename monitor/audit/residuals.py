@@ -104,7 +104,9 @@ class Spec:
         ``valve_gate(sig) -> (x_max, free)``: a spool stop (one-step predictions clipped to
         +-x_max [m]) and the samples free of it, the only ones the valve fit uses.
     force_cols : dict
-        name -> ``fn(sig, cfg, x1, v) -> column`` per sample (filtered afterwards) [N per unit].
+        name -> ``fn(sig, cfg, x1, v, vs) -> column`` per sample (filtered afterwards) [N per
+        unit], from the lightly smoothed x1 [m] and velocity v [m/s] and the sample-to-sample
+        velocity vs [m/s] (``Signals.vs``), all re-aligned by ``x1_shift``.
     chamber_cols : dict
         name -> ``fn(sig, cfg, x1, p1, p2) -> (c1, c2)``: the column is -L[V_i x_i' c_i]
         (a pressure-dependent compressibility) [m^3/s per unit].
@@ -207,8 +209,9 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     scored = None if sigma_net > STEP_ERROR else ~(np.convolve(step, np.ones(w), mode="same") > 0)[rows][keep]
     fy = sig.smooth(a1 * p1 - a2 * p2 - cfg.F_L, w)[rows]
     fcols = {"m": sig.deriv(x1, 2, w), "B_fv": vf, "f_c": sig.smooth(np.sign(vl), w), "K_t": sig.smooth(x1, w)}
+    vs = _shift(sig.vs, n1)
     for name, fn in spec.force_cols.items():
-        fcols[name] = sig.smooth(fn(sig, cfg, x1l, vl), w)
+        fcols[name] = sig.smooth(fn(sig, cfg, x1l, vl, vs), w)
     fX = np.column_stack([c[rows] for c in fcols.values()])[keep]
     fnl = np.zeros(fX.shape + (2,))
     fnl[:, 0, 0] = sig.sigma[0] * sig.gain_f[2]  # acceleration (2nd-derivative filter)

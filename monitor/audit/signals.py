@@ -86,6 +86,10 @@ class Signals:
         Lightly smoothed position [m], velocity [m/s], pressures [Pa], spool [m]: the
         ingredients of nonlinear terms (sign(v), the orifice factors), formed before the
         equation filter.
+    vs : array (N,)
+        Sample-to-sample velocity [m/s], the central difference of the raw x1: the ingredient of
+        terms that change within a few samples of velocity (a Stribeck hump), which the light
+        smoothing would average over a stick-slip surge.
     v_noise : float
         Noise rms of the equation-filtered velocity [m/s].
     sigma : array (4,)
@@ -106,6 +110,7 @@ class Signals:
     x3l: np.ndarray
     x4l: np.ndarray
     x5l: np.ndarray
+    vs: np.ndarray
     v_noise: float
     sigma: np.ndarray
     gain: np.ndarray
@@ -148,5 +153,5 @@ def signals(samples: np.ndarray, h: float) -> Signals:
     light = _sg(s[:, 1:], 0, h, SG_LIGHT)
     return Signals(h=h, ug=ug, x1=x1, x3=x3, x4=x4, x5=x5,
                    x1l=light[:, 0], vl=_sg(x1, 1, h, SG_LIGHT), x3l=light[:, 1], x4l=light[:, 2],
-                   x5l=light[:, 3], v_noise=float(sigma[0] * gain_f[1]), sigma=sigma, gain=gain,
+                   x5l=light[:, 3], vs=np.gradient(x1, h), v_noise=float(sigma[0] * gain_f[1]), sigma=sigma, gain=gain,
                    gain_f=gain_f)

@@ -31,3 +31,15 @@ def test_a_clean_record_is_not_named(profile, severity, noise, seed):
     s, cfg = _record("clean", {}, profile, severity, noise, seed)
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert res.cause == "none", (res.cause, res.note)
+
+
+def test_a_large_hump_that_makes_the_piston_stick_and_slip_is_named():
+    """240 N above Coulomb on a healthy noise-free sine (tuning base 9900000's ladder record 60):
+    the piston surges from about 1 to 20 mm/s and back within 2-4 samples. Formed from the
+    lightly smoothed velocity the hump was the hump of an average speed, the Stribeck fit
+    extrapolated worse than the nominal one, and a load offset was named instead."""
+    s, cfg = _record("one", {"stribeck_friction": 240.0}, "paper-id:offset=1.711,amplitude=0.901,freq=0.848",
+                     0.079, "none", 9910060)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.causes == ("stribeck_friction",), (res.causes, res.note)
+    assert 100.0 < res.effect["stribeck_F_s"] < 480.0, res.effect

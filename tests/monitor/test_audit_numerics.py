@@ -108,3 +108,25 @@ def test_a_free_run_holds_a_mass_it_cannot_integrate_at_the_smallest_stable_one(
         assert not fr.diverged and "m" in fr.clamped
         assert channel_scores(run.samples[:, 1:], fr.measured, slice(0, None))["x1"]["nrmse"] < 0.05
     assert free_run(run.samples, cfg, true).clamped == ()
+
+
+@settings(max_examples=40, deadline=None)
+@given(a=st.floats(-1.0, 1.0), b=st.floats(-0.1, 0.1), c=st.floats(-0.05, 0.05), h=st.floats(1e-3, 2e-2))
+def test_the_sample_to_sample_velocity_is_exact_on_a_parabola_and_follows_a_surge(a, b, c, h):
+    """Signals.vs, the Stribeck hump's velocity: the central difference, exact on x1 = c + b t +
+    a t^2 away from the ends; a 3-sample velocity surge it follows to its peak within one
+    sample's worth of motion, where the lightly smoothed velocity spreads it over 11 samples."""
+    from monitor.audit.signals import signals
+
+    n = 300
+    t = np.arange(n) * h
+    x1 = c + b * t + a * t * t
+    s = np.column_stack([np.zeros(n), x1, np.full(n, 1e6), np.full(n, 1e6), np.zeros(n)])
+    sig = signals(s, h)
+    np.testing.assert_allclose(sig.vs[1:-1], (b + 2.0 * a * t)[1:-1], rtol=0, atol=1e-9 * (abs(b) + abs(a) + 1))
+    v = np.full(n, 1e-3)  # [m/s] creep with a surge to 20 mm/s over samples 150-152
+    v[150:153] = 0.02
+    x1 = np.concatenate([[0.0], np.cumsum(v[:-1] * h)])
+    sig = signals(np.column_stack([np.zeros(n), x1, np.full(n, 1e6), np.full(n, 1e6), np.zeros(n)]), h)
+    assert sig.vs[151] == pytest.approx(0.02, rel=1e-6)
+    assert abs(sig.vl[151] - 0.02) > 0.005
