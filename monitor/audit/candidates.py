@@ -130,9 +130,10 @@ class StribeckFriction(Candidate):
     of the filtered velocity, reversals included as long as the filter window does not hold the
     reversal instant itself), and the hump enters as the column L[sign(v) exp(-(v/v_s)^2)] with
     v the sample-to-sample velocity (``Signals.vs``; the hump changes within a stick-slip
-    surge, faster than the smoothed velocity follows): odd in v, so a constant force (a load offset) does not mimic it, and decaying, so Coulomb plus
-    viscous friction (a step and a line) absorb only part of it. v_s is searched on a grid; at
-    rest, the piston is held up to f_c + F_s (the rest rows' dead zone).
+    surge, faster than the smoothed velocity follows): odd in v, so a constant force (a load
+    offset) does not mimic it, and decaying, so Coulomb plus viscous friction (a step and a
+    line) absorb only part of it. v_s is searched on a grid; at rest, the piston is held up to
+    f_c + F_s (the rest rows' dead zone).
     """
 
     name = "stribeck_friction"
