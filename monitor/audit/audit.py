@@ -17,8 +17,8 @@
    ``TRAIN_SHARE`` of the threshold): an improvement that appears on one part only is noise.
    The score is scale-free (a relative variance reduction, 0.1 = about 10 %); we do not use
    N-weighted likelihoods because the filtered equations' residuals are strongly correlated
-   and their effective sample size is not known well enough. The threshold is calibrated on simulated clean
-   records (the largest clean-record score we saw in 40 seeds was about 0.10).
+   and their effective sample size is not known well enough. The threshold is calibrated on
+   simulated clean records (the largest clean-record score we saw in 40 seeds was about 0.10).
 3. Re-simulate the nominal and each extended model in free run from the measured ug
    (``monitor.audit.freerun``) and measure the held-out error per channel (the gain). For a
    searched scalar (dead band, supply resistance) the simulated value is polished among
@@ -43,8 +43,8 @@ from plant_sim.params import Effects
 
 from .candidates import LIBRARY
 from .freerun import SENSORS, channel_scores, free_run
-from .residuals import (BLOCKS, TRAIN_SHARE, Fit, Spec, build_blocks, fit_blocks, merge_specs, nominal_params,
-                        signals)
+from .residuals import (BLOCKS, Fit, Spec, build_blocks, fit_blocks, improves_training, merge_specs,
+                        nominal_params, signals)
 from .verdict import EQUATION_OF, POSITIVE_AUDIT, impossible_params  # noqa: F401  (re-exported)
 from .decide import decide
 from .probe import probe_fits
@@ -365,7 +365,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         (physical, _), value, fit = best
         tr, te = _mse_split(fit, split, floors)
         score = _log_ratio(nom_te, te) - opt.penalty * cand.n_extra
-        if _log_ratio(nom_tr, tr) <= TRAIN_SHARE * opt.threshold or not physical:
+        if not improves_training(_log_ratio(nom_tr, tr), opt.threshold) or not physical:
             score = min(score, 0.0)  # hardly better on the data it was fitted to (noise), or unphysical
         params = nominal_params(fit)
         effect = cand.effects(value, fit.theta)

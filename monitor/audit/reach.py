@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from .candidates import StribeckFriction
-from .residuals import TRAIN_SHARE, build_blocks, fit_blocks
+from .residuals import build_blocks, fit_blocks, improves_training
 
 __all__ = ["REACH_GRID", "REACH_V_S", "stribeck_reach"]
 
@@ -72,6 +72,6 @@ def stribeck_reach(sig, cfg, split: int, h: float, base: dict, theta0: float, th
             if best is None or key > best[0]:
                 best = (key, held)
         (physical, train), held = best
-        if physical and train > TRAIN_SHARE * threshold and held - penalty * cand.n_extra > 2.0 * threshold:
+        if physical and improves_training(train, threshold) and held - penalty * cand.n_extra > 2.0 * threshold:
             return f_s
     return None

@@ -46,7 +46,8 @@ from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, signals  # noqa
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
-           "nominal_params", "BLOCKS", "orifice_factors", "merge_specs", "TRAIN_SHARE"]
+           "nominal_params", "BLOCKS", "orifice_factors", "merge_specs", "TRAIN_SHARE",
+           "improves_training"]
 
 BLOCKS = ("force", "rest", "chamber", "valve")
 VAR_FLOOR = {"force": 1.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
@@ -72,8 +73,15 @@ TRAIN_SHARE = 1.0 / 3.0
 Clean realistic- and stress-noise records of the tuning base 9900000 were named for held-out
 scores of 0.17-0.31 with training improvements of 0.008-0.026; of 1197 right answers of its
 sweeps (main, seven ladders), two had less than 0.05, both scoring 0.15."""
+
 STEP_ERROR = 5.0  # [N] net-force noise rms above which the force rows next to a command step are scored
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
+
+
+def improves_training(train_log_ratio: float, threshold: float) -> bool:
+    """Whether an extension improves the training part enough for its held-out score to count:
+    its summed training log ratio [-] above ``TRAIN_SHARE`` of the score ``threshold`` [-]."""
+    return train_log_ratio > TRAIN_SHARE * threshold
 
 
 def orifice_factors(xv: np.ndarray, p1: np.ndarray, p2: np.ndarray, ps) -> tuple[np.ndarray, np.ndarray]:

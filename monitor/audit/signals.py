@@ -153,5 +153,5 @@ def signals(samples: np.ndarray, h: float) -> Signals:
     light = _sg(s[:, 1:], 0, h, SG_LIGHT)
     return Signals(h=h, ug=ug, x1=x1, x3=x3, x4=x4, x5=x5,
                    x1l=light[:, 0], vl=_sg(x1, 1, h, SG_LIGHT), x3l=light[:, 1], x4l=light[:, 2],
-                   x5l=light[:, 3], vs=np.gradient(x1, h), v_noise=float(sigma[0] * gain_f[1]), sigma=sigma, gain=gain,
-                   gain_f=gain_f)
+                   x5l=light[:, 3], vs=np.gradient(x1, h), v_noise=float(sigma[0] * gain_f[1]), sigma=sigma,
+                   gain=gain, gain_f=gain_f)
