@@ -1,16 +1,16 @@
 """The audit's sweep: every effect on every input profile, health band and noise level.
 
 ``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]
-[--fixed] [--only NAME | --ladder NAME | --clean N]`` prints the tables of ``docs/audit.md``. Every
-record is 20 s at 100 Hz from ``plant_sim``; its seed is ``BASE[seeds] + its index`` in the fixed
-list below (the ``tune`` seeds were used to set the audit's thresholds, the ``heldout`` seeds were
-fixed before any result on them was seen). The seed draws the record's noise and also its own
-input and health (``_drawn``): the profile's parameters around their defaults (the sine's offset,
-amplitude and frequency; the variable input's period; the steps' levels and period; the
-multisine's offset, amplitude and frequency scale) and the severity within its band. A noise-free
-record on a default input is the same for every seed, so without the draw a base held out would
-hold out only the noise; ``--fixed`` keeps every record on its profile's defaults at its band's
-centre.
+[--fixed] [--duration S] [--only NAME | --ladder NAME | --clean N]`` prints the tables of
+``docs/audit.md``. Every record is 20 s (``--duration``) at 100 Hz from ``plant_sim``; its seed is
+``BASE[seeds] + its index`` in the fixed list below (the ``tune`` seeds were used to set the
+audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen). The seed
+draws the record's noise and also its own input and health (``_drawn``): the profile's parameters
+around their defaults (the sine's offset, amplitude and frequency; the variable input's period; the
+steps' levels and period; the multisine's offset, amplitude and frequency scale) and the severity
+within its band. A noise-free record on a default input is the same for every seed, so without the
+draw a base held out would hold out only the noise; ``--fixed`` keeps every record on its profile's
+defaults at its band's centre.
 
 * one effect: each of the seven effects on each of the four profiles (the paper's sine
   ``paper-id``, its variable-condition input ``paper-var``, ``steps``, ``multisine``) at
@@ -174,12 +174,12 @@ def _drawn(profile, severity, seed):
 def _audit_one(args):
     from monitor.audit import AuditOptions, audit
 
-    i, case, seed, fixed = args
+    i, case, seed, fixed, duration = args
     kind, effects, profile, severity, noise, step = case
     if not fixed:
         profile, severity = _drawn(profile, severity, seed)
     drawn = f"{profile} severity {severity}"
-    s, cfg = _record(kind, effects, profile, severity, noise, seed)
+    s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
     try:
         res = audit(s, cfg, AuditOptions(free_run=False))
     except ValueError as e:  # a record the audit refuses (as the CLI would, exit 2) is a wrong answer
@@ -213,9 +213,13 @@ def main(argv=None):
                     help="audit N clean records per profile, band and noise level instead")
     ap.add_argument("--fixed", action="store_true",
                     help="every record on its profile's default parameters at its band's centre (no draw)")
+    ap.add_argument("--duration", type=float, default=DURATION, metavar="S",
+                    help=f"each record's length [s] (default {DURATION:g}; at least 5)")
     args = ap.parse_args(argv)
     if args.clean is not None and (args.clean < 1 or args.ladder):
         ap.error("--clean takes N >= 1, and not with --ladder")
+    if not args.duration >= 5.0:  # also refuses nan
+        ap.error(f"--duration must be at least 5 s (got {args.duration:g})")
     base = BASE[args.seeds] if args.seed_base is None else args.seed_base
     if args.ladder:
         cases, first, only = _ladder_cases(args.ladder), base + LADDER_SEED, None
@@ -223,7 +227,7 @@ def main(argv=None):
         cases, first, only = _clean_cases(args.clean), base + CLEAN_SEED, None
     else:
         cases, first, only = _cases(), base, args.only  # --only selects among the main list's records
-    todo = [(i, c, first + i, args.fixed) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
+    todo = [(i, c, first + i, args.fixed, args.duration) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
             and (only is None or only == c[0] or only in c[1])]
     t0 = time.perf_counter()
     results = {}
@@ -242,12 +246,12 @@ def main(argv=None):
             pool.shutdown()
     wall = time.perf_counter() - t0
     if args.ladder:
-        _print_ladder(args.ladder, cases, results, base, wall)
+        _print_ladder(args.ladder, cases, results, base, wall, args.duration)
         return
     if args.clean:
-        _print_clean(cases, results, base, wall)
+        _print_clean(cases, results, base, wall, args.duration)
         return
-    _print_tables(cases, results, args.seeds, base, wall)
+    _print_tables(cases, results, args.seeds, base, wall, args.duration)
     secs, cause = _time_60s()
     print(f"\nOne full audit (free run on, after a warm-up audit) of a 60 s paper-var record, realistic noise, "
           f"load offset 1000 N: {secs:.1f} s wall (cause: {cause}).")
@@ -272,9 +276,9 @@ def _print_listed(title, indices, cases, results, describe):
             print(f"- {i}: {describe(*cases[i])} -> {', '.join(results[i][0])}  ({results[i][3]})")
 
 
-def _print_tables(cases, results, seeds, base, wall):
+def _print_tables(cases, results, seeds, base, wall, duration):
     right = lambda i: results[i][0] == results[i][1]  # noqa: E731
-    print(f"Audit sweep, seeds '{seeds}' (base {base}), {len(results)} records of {DURATION:g} s, "
+    print(f"Audit sweep, seeds '{seeds}' (base {base}), {len(results)} records of {duration:g} s, "
           f"{wall:.0f} s wall.\n")
     print("One effect, named right per profile (of the two noise levels' records at that step):\n")
     print("| effect | unit | claimed limit none / realistic | step | " + " | ".join(PROFILES) + " | all |")
@@ -301,10 +305,10 @@ def _print_tables(cases, results, seeds, base, wall):
                   f"{kind} {effects} {profile} severity {severity} {noise} {step}")
 
 
-def _print_ladder(name, cases, results, base, wall):
+def _print_ladder(name, cases, results, base, wall, duration):
     unit = CLAIMS[name][0]
     print(f"Ladder of {name}, base {base} (seeds base + {LADDER_SEED} + index), {len(results)} records of "
-          f"{DURATION:g} s, {wall:.0f} s wall. Each cell: records named right of the five bands' records.\n")
+          f"{duration:g} s, {wall:.0f} s wall. Each cell: records named right of the five bands' records.\n")
     print(f"| noise | {name} [{unit}] | multiple of the claimed limit | " + " | ".join(PROFILES) + " | all |")
     print("|---|---|---|" + "---|" * (len(PROFILES) + 1))
     right = lambda i: results[i][0] == results[i][1]  # noqa: E731
@@ -318,9 +322,9 @@ def _print_ladder(name, cases, results, base, wall):
                   f"{effects} {profile} severity {severity} {noise}")
 
 
-def _print_clean(cases, results, base, wall):
+def _print_clean(cases, results, base, wall, duration):
     print(f"Clean records, base {base} (seeds base + {CLEAN_SEED} + index), {len(results)} records of "
-          f"{DURATION:g} s, {wall:.0f} s wall.\n")
+          f"{duration:g} s, {wall:.0f} s wall.\n")
     print("| noise | named none | named an effect | unexplained | refused |")
     print("|---|---|---|---|---|")
     for noise in NOISES + ("stress",):

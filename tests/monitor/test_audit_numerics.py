@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import cont2discrete, lfilter, savgol_filter
 
 from monitor.audit.candidates import _sagged_factor
 from monitor.audit.freerun import channel_scores, free_run
-from monitor.audit.residuals import orifice_factors, valve_response
+from monitor.audit.residuals import COMPENSATION_MAX, _lstsq, noise_share, orifice_factors, valve_response
 from monitor.audit.signals import _savgol
 from monitor.audit.valve_fit import _filter2, _valve_filter
 from plant_sim.degradation import degrade
@@ -130,3 +131,27 @@ def test_the_sample_to_sample_velocity_is_exact_on_a_parabola_and_follows_a_surg
     sig = signals(np.column_stack([np.zeros(n), x1, np.full(n, 1e6), np.full(n, 1e6), np.zeros(n)]), h)
     assert sig.vs[151] == pytest.approx(0.02, rel=1e-6)
     assert abs(sig.vl[151] - 0.02) > 0.005
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(30, 300), k=st.integers(1, 5),
+       noise=st.floats(0.01, 3.0), scales=st.lists(st.floats(-6, 6), min_size=5, max_size=5))
+def test_the_noise_compensation_never_leaves_an_indefinite_normal_matrix(seed, n, k, noise, scales):
+    """Errors-in-variables least squares on regressors of any scale whose noise may exceed their
+    signal: the compensated normal matrix keeps at least 1 - COMPENSATION_MAX of the data's
+    energy in every direction, the estimate is finite, and it is (X'X - c S)^-1 X'y with c = 1
+    where the noise holds at most COMPENSATION_MAX (the full compensation)."""
+    rng = np.random.default_rng(seed)
+    scale = 10.0 ** np.array(scales[:k])
+    signal = rng.normal(size=(n, k)) * rng.uniform(0.0, 1.0, size=k)
+    load = noise * rng.normal(size=(n, k, 2)) / np.sqrt(2.0)
+    X = (signal + load.sum(axis=2) / np.sqrt(2.0)) * scale
+    load = load * scale[None, :, None]
+    y = X @ rng.normal(size=k) + rng.normal(size=n)
+    th = _lstsq(X, y, load)
+    assert np.all(np.isfinite(th))
+    G, S = X.T @ X, np.einsum("rik,rjk->ij", load, load)
+    share = noise_share(G, S)
+    used = S if share <= COMPENSATION_MAX else S * COMPENSATION_MAX / share
+    assert scipy.linalg.eigh(G - used, G, eigvals_only=True)[0] >= 1.0 - COMPENSATION_MAX - 1e-6
+    np.testing.assert_allclose(th, np.linalg.solve(G - used, X.T @ y), rtol=1e-6, atol=1e-9 * np.max(np.abs(th)))

@@ -79,3 +79,29 @@ def test_a_drawn_record_differs_from_the_fixed_one_without_noise():
     assert np.array_equal(fixed[0], fixed[1])
     drawn = [_record("clean", {}, *_drawn("steps", 0.5, seed), "none", seed, duration=2.0)[0] for seed in (1, 2)]
     assert not np.array_equal(drawn[0], drawn[1])
+
+
+@pytest.mark.parametrize("duration", ["2", "nan", "-20"])
+def test_a_record_length_below_five_seconds_is_refused(duration, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--ladder", "load_offset", "--duration", duration])
+    assert e.value.code == 2
+    assert "--duration must be at least 5 s" in capsys.readouterr().err
+
+
+def test_the_record_length_reaches_every_record(monkeypatch):
+    from hydromon.tools import audit_sweep
+
+    asked = []
+
+    class Stop(Exception):
+        pass
+
+    def record(kind, effects, profile, severity, noise, seed, duration=audit_sweep.DURATION):
+        asked.append(duration)
+        raise Stop
+
+    monkeypatch.setattr(audit_sweep, "_record", record)
+    with pytest.raises(Stop):
+        main(["--ladder", "load_offset", "--duration", "60"])
+    assert asked == [60.0]
