@@ -53,14 +53,3 @@ def test_a_clean_record_improved_on_its_held_out_part_only_is_not_named():
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert res.cause == "none", (res.cause, res.note)
 
-
-def test_air_at_fault_grade_health_whose_noise_rivals_its_signal_is_named():
-    """4 % air on a paper-id record at fault-grade health and realistic noise (tuning base
-    10900000, --ladder entrained_air, record 84): the air column and the 1/beta_e column carry
-    the same pressure-rate noise, which held 1.07 times the data's energy in one direction of
-    the chamber equation; compensated in full, the air fit was noise and the record came out
-    ``unexplained``."""
-    s, cfg = _record("one", {"entrained_air": 0.04}, "paper-id:offset=2.057,amplitude=1.060,freq=1.034", 0.976,
-                     "realistic", 10910084)
-    res = audit(s, cfg, AuditOptions(free_run=False))
-    assert res.causes == ("entrained_air",), (res.causes, res.note)

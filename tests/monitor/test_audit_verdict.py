@@ -4,8 +4,6 @@ effects at once, and an effect outside the library (``unexplained``). Records fr
 
 from __future__ import annotations
 
-import math
-
 import pytest
 
 from hydromon.report.audit import to_json
@@ -157,3 +155,15 @@ def test_a_tie_that_the_free_run_does_not_break_names_nothing():
     assert top.score > 0.15 and top.gain <= 0, (top.name, top.score, top.gain)
     assert res.cause == "none" and not res.confident, (res.cause, res.note)
     assert "cannot tell" in res.note and "nothing is named" in res.note, res.note
+
+
+def test_air_at_fault_grade_health_whose_noise_rivals_its_signal_is_named():
+    """4 % air on a paper-id record at fault-grade health and realistic noise (tuning base
+    10900000, --ladder entrained_air, record 84): the air column and the 1/beta_e column carry
+    the same pressure-rate noise, which held 1.07 times the data's energy in one direction of
+    the chamber equation; compensated in full, the air fit was noise and the record came out
+    ``unexplained``."""
+    s, cfg = _record("one", {"entrained_air": 0.04}, "paper-id:offset=2.057,amplitude=1.060,freq=1.034", 0.976,
+                     "realistic", 10910084)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.causes == ("entrained_air",), (res.causes, res.note)
