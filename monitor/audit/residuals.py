@@ -19,7 +19,7 @@ The nominal model is the paper's, as four blocks (SI):
   C_d W / sqrt(rho) and z1, z2 the orifice pressure factors of ``plant_sim.model.orifice_z``.
   Solved by bias-compensated least squares (the pressure-rate column carries filtered
   sensor noise, which would bias plain least squares toward zero), the compensation capped
-  where the noise rivals the data (``COMPENSATION_MAX``).
+  where the noise rivals the data (``monitor.audit.eiv``).
 * **valve** (eqs 39-42): output error of the 2nd-order valve driven by
   ``du = K_p (ug - K_f x1_fb)``: x5 is simulated from du alone through the exact discrete
   model for piecewise-linear input (first-order hold) of ``K_sv omega^2 / (s^2 + 2 zeta omega s
@@ -40,16 +40,16 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-import scipy.linalg
 
 from hydromon.contract import RigConfig
 
+from .eiv import compensated_lstsq
 from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, signals  # noqa: F401  (re-exported)
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
            "nominal_params", "BLOCKS", "orifice_factors", "merge_specs", "TRAIN_SHARE",
-           "improves_training", "noise_share", "COMPENSATION_MAX"]
+           "improves_training"]
 
 BLOCKS = ("force", "rest", "chamber", "valve")
 VAR_FLOOR = {"force": 1.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
@@ -75,14 +75,6 @@ TRAIN_SHARE = 1.0 / 3.0
 Clean realistic- and stress-noise records of the tuning base 9900000 were named for held-out
 scores of 0.17-0.31 with training improvements of 0.008-0.026; of 1197 right answers of its
 sweeps (main, seven ladders), two had less than 0.05, both scoring 0.15."""
-
-COMPENSATION_MAX = 0.9
-"""Largest share of the data's energy in any direction of the regressors that the noise
-compensation removes [-]. Where the noise holds more, X'X - S is nearly singular or indefinite
-and the compensated solution is noise: the chamber equation with entrained air at fault-grade
-health and realistic noise (the air column and the 1/beta_e column carry the same pressure-rate
-noise) reached 1.0-1.07 on tuning records, and its air fit then made the chamber residual 1.2
-to 50000 times the nominal one. Nominal fits at realistic noise stay below 0.76."""
 
 STEP_ERROR = 5.0  # [N] net-force noise rms above which the force rows next to a command step are scored
 STEP_TOL = 0.1  # [V] |2nd difference of ug| that marks a step; valve rows there are skipped
@@ -360,36 +352,6 @@ class Fit:
         return max(raw - noise, floor)
 
 
-def noise_share(G: np.ndarray, S: np.ndarray) -> float:
-    """The largest share of the data's energy that noise holds in any direction of the
-    regressors [-]: max over u of u'Su / u'Gu (G = X'X, S the noise's part of it), the largest
-    generalized eigenvalue; ``nan`` when G is singular."""
-    try:
-        return float(scipy.linalg.eigh(S, G, eigvals_only=True)[-1])
-    except (np.linalg.LinAlgError, ValueError):
-        return math.nan
-
-
-def _lstsq(X, y, noise_load=None):
-    """Least squares, bias-compensated when the regressors' noise is known:
-    theta = (X'X - c S)^-1 X'y with S = sum over rows of L L^T (errors in variables) and c = 1,
-    or less where the noise holds more than ``COMPENSATION_MAX`` of the data in some direction
-    (c = COMPENSATION_MAX / ``noise_share``)."""
-    scale = np.sqrt(np.mean(X * X, axis=0))
-    scale[scale == 0] = 1.0
-    Xs = X / scale
-    if noise_load is None:
-        th, *_ = np.linalg.lstsq(Xs, y, rcond=None)
-        return th / scale
-    L = noise_load / scale[None, :, None]
-    G, S = Xs.T @ Xs, np.einsum("rik,rjk->ij", L, L)
-    share = noise_share(G, S)
-    if share > COMPENSATION_MAX:
-        S = S * (COMPENSATION_MAX / share)
-    th = np.linalg.solve(G - S, Xs.T @ y)
-    return th / scale
-
-
 def _dead_zone(r: np.ndarray, level: float) -> np.ndarray:
     return np.sign(r) * np.maximum(np.abs(r) - level, 0.0)
 
@@ -418,7 +380,7 @@ def fit_blocks(blocks: dict[str, Block], train_end: int, h: float, cache: dict |
         use = (b.rows < train_end) & b.fit_mask
         if use.sum() < 2 * b.X.shape[1]:
             raise ValueError(f"{name} equation: only {int(use.sum())} training rows")
-        th = _lstsq(b.X[use], b.y[use], None if b.noise_load is None else b.noise_load[use])
+        th = compensated_lstsq(b.X[use], b.y[use], None if b.noise_load is None else b.noise_load[use])
         theta[name] = dict(zip(b.columns, th.tolist()))
         res[name] = b.y - b.X @ th
         if b.noise_load is None:

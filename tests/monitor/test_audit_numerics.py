@@ -12,7 +12,8 @@ from scipy.signal import cont2discrete, lfilter, savgol_filter
 
 from monitor.audit.candidates import _sagged_factor
 from monitor.audit.freerun import channel_scores, free_run
-from monitor.audit.residuals import COMPENSATION_MAX, _lstsq, noise_share, orifice_factors, valve_response
+from monitor.audit.eiv import COMPENSATION_MAX, compensated_lstsq, noise_share
+from monitor.audit.residuals import orifice_factors, valve_response
 from monitor.audit.signals import _savgol
 from monitor.audit.valve_fit import _filter2, _valve_filter
 from plant_sim.degradation import degrade
@@ -148,7 +149,7 @@ def test_the_noise_compensation_never_leaves_an_indefinite_normal_matrix(seed, n
     X = (signal + load.sum(axis=2) / np.sqrt(2.0)) * scale
     load = load * scale[None, :, None]
     y = X @ rng.normal(size=k) + rng.normal(size=n)
-    th = _lstsq(X, y, load)
+    th = compensated_lstsq(X, y, load)
     assert np.all(np.isfinite(th))
     G, S = X.T @ X, np.einsum("rik,rjk->ij", load, load)
     share = noise_share(G, S)
