@@ -321,7 +321,8 @@ class SensorDelay(Candidate):
     equation = "x1_recorded(k) = x1(k - n);  du = K_p (ug - K_f x1(k - n if in loop else k))"
     regressors = ("x1, v, a re-aligned by n samples", "du from the re-aligned x1 unless in loop")
     n_extra = 1
-    max_delay: int = 12  # [samples] above the sweep's largest (10): a delay beyond the grid leaves residual another candidate soaks up
+    # [samples] above the sweep's largest (10): a delay beyond the grid leaves residual another candidate soaks up
+    max_delay: int = 12
 
     def grid(self, sig):
         return [(n, loop) for n in range(1, self.max_delay + 1) for loop in (False, True)]

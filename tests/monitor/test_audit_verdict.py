@@ -167,3 +167,14 @@ def test_air_at_fault_grade_health_whose_noise_rivals_its_signal_is_named():
                      "realistic", 10910084)
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert res.causes == ("entrained_air",), (res.causes, res.note)
+
+
+def test_a_second_cause_that_does_not_simulate_the_record_better_is_not_named():
+    """4 % air on a paper-id record at fault-grade health and realistic noise (tuning base
+    10900000, main sweep, record 99): a sensor delay fitted beside the air beat the air alone
+    on the held-out equations, but the two simulated the held-out part no better than the air
+    alone, so only the air is named."""
+    s, cfg = _record("one", {"entrained_air": 0.04}, "paper-id:offset=1.924,amplitude=0.992,freq=0.841", 0.855,
+                     "realistic", 10900099)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.causes == ("entrained_air",), (res.causes, res.note)
