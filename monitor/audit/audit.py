@@ -149,6 +149,9 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     sim_nom = run.measured
     fr_nom = channel_scores(measured, sim_nom, test)
 
+    def simulate(params, effect):  # an extended model's free run; invalid parameters take the nominal ones
+        return free_run(s, cfg, params, Effects(**effect), v0=float(sig.vl[0]), fallback=p_nom)
+
     def fit_at(cand, value):
         spec = cand.spec(value)
         fit = fit_blocks(build_blocks(sig, cfg, spec, theta0), split, cfg.h, cache)
@@ -224,7 +227,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                                             float(sig.vl[0])))
             best_run = None
             for p_m, e_m in models:
-                run = free_run(s, cfg, p_m, Effects(**e_m), v0=float(sig.vl[0]), fallback=p_nom)
+                run = simulate(p_m, e_m)
                 err = _mean_nrmse(channel_scores(measured, run.measured, slice(0, split)))
                 if best_run is None or err < best_run[0]:
                     best_run = (err, run, p_m, e_m)
@@ -261,7 +264,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         return (_log_ratio(te1, te) - opt.penalty * c2.n_extra if ok else 0.0), f, eff
 
     def pair_gain(fit, effect):  # two extensions fitted together (``pair``), simulated as one
-        run2 = free_run(s, cfg, nominal_params(fit), Effects(**effect), v0=float(sig.vl[0]), fallback=p_nom)
+        run2 = simulate(nominal_params(fit), effect)
         return _gain(run2, channel_scores(measured, run2.measured, test), fr_nom)
 
     def probe(names):

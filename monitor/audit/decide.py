@@ -20,8 +20,8 @@ Rules (scores as in ``monitor.audit.audit``, threshold ``opt.threshold``):
    gain is larger: a second fitted to what the first leaves in the equations, such as a delay
    beside air at fault-grade health or a Stribeck hump beside a steps record's effect, did not
    simulate the record better in 10 of 13 such records of the tuning base 10900000, while all
-   10 genuine pairs did); alone, the second need not score (the first distorts its fit). When the nominal fit
-   is impossible, the second must earn its place alone as the first did. A close runner-up
+   10 genuine pairs did); alone, the second need not score (the first distorts its fit). When
+   the nominal fit is impossible, the second must earn its place alone as the first did. A close runner-up
    makes the answer not confident, and names nothing when the winner's free run does not
    simulate the held-out part better than the nominal model's (a tie no evidence breaks).
 3. ``unexplained`` when nothing is named but the final model's held-out residual keeps

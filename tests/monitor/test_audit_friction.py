@@ -52,4 +52,3 @@ def test_a_clean_record_improved_on_its_held_out_part_only_is_not_named():
     s, cfg = _record("clean", {}, "paper-var:period=10.481", 0.478, "realistic", 9920135)
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert res.cause == "none", (res.cause, res.note)
-
