@@ -24,6 +24,11 @@
    searched scalar (dead band, supply resistance) the simulated value is polished among
    ``POLISH`` multiples by the free-run error on the training part only.
 
+4. When nothing earns its place, a Stribeck hump may still be named from its free run
+   (``monitor.audit.hump``): fitted to the training part's free-run error, it must simulate the
+   held-out part better than the nominal model with its Coulomb and viscous friction refitted
+   the same way (rule 5 of ``monitor.audit.decide``).
+
 The cause is the best-scoring candidate if it earns its place, else "none". When a
 runner-up that also earns its place scores more than ``margin`` times the winner, or the
 winner has a caveat (Stribeck friction: nearly collinear with Coulomb plus viscous friction
@@ -33,19 +38,20 @@ at these speeds) and barely earns its place, ``confident`` is False and ``note``
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
-from scipy.optimize import minimize
 
 from hydromon.contract import RigConfig
 from plant_sim.params import Effects
 
 from .candidates import LIBRARY
-from .freerun import SENSORS, channel_scores, free_run
+from .freerun import channel_scores, free_run, mean_nrmse, output_error_fit
 from .residuals import (BLOCKS, Fit, Spec, build_blocks, fit_blocks, improves_training, merge_specs,
                         nominal_params, signals)
 from .verdict import EQUATION_OF, POSITIVE_AUDIT, impossible_params  # noqa: F401  (re-exported)
 from .decide import decide
+from .hump import hump_evidence
 from .probe import probe_fits
 from .reach import stribeck_reach
 from .result import AuditOptions, AuditResult, CandidateResult
@@ -79,33 +85,16 @@ def _log_ratio(nom: dict, ext: dict) -> float:
     return sum(math.log(nom[g] / ext[g]) for g in BLOCKS if nom[g] > 0 and ext[g] > 0)
 
 
-def _mean_nrmse(scores: dict) -> float:
-    return float(np.mean([scores[c]["nrmse"] for c in SENSORS]))
-
-
 def _gain(run, scores: dict, nominal_scores: dict) -> float:
     """Free-run gain [-]: 1 - the held-out mean NRMSE over the nominal model's (-inf: diverged)."""
-    return -math.inf if run.diverged else 1.0 - _mean_nrmse(scores) / _mean_nrmse(nominal_scores)
+    return -math.inf if run.diverged else 1.0 - mean_nrmse(scores) / mean_nrmse(nominal_scores)
 
 
-def _output_error(cand, params, effect, s, cfg, measured, split, fallback, v0, max_runs: int = 120):
-    """The candidate's free-run variables refined by Nelder-Mead on the training part's free-run
-    error from each of its starts (each evaluation one free run, ~6 ms for 30 s); returns the
-    best (params, effect)."""
+def _output_error(cand, params, effect, s, cfg, split, fallback, v0):
+    """The candidate's free-run variables refined on the training part's free-run error from
+    each of its starts; returns the best (params, effect)."""
     starts, to_model = cand.free_run_variables(params, effect)
-    train = slice(0, split)
-
-    def cost(x):
-        p_m, e_m = to_model(x)
-        run = free_run(s, cfg, p_m, Effects(**e_m), v0=v0, fallback=fallback)
-        # a diverged run costs more than any run that stays in range (NRMSE ~ 0.01-1), finitely:
-        # Nelder-Mead's simplex arithmetic needs finite values
-        return 1e3 if run.diverged else _mean_nrmse(channel_scores(measured, run.measured, train))
-
-    best = min((minimize(cost, x0, method="Nelder-Mead", options={"maxfev": max_runs, "xatol": 1e-3,
-                                                                   "fatol": 1e-6}) for x0 in starts),
-               key=lambda r: r.fun)
-    return to_model(best.x)
+    return output_error_fit(starts, to_model, s, cfg, slice(0, split), v0, fallback)
 
 
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
@@ -223,12 +212,11 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                         continue
                     models.append((nominal_params(pf), cand.effects(value * f, pf.theta)))
             if hasattr(cand, "free_run_variables") and score > opt.threshold:
-                models.append(_output_error(cand, params, effect, s, cfg, measured, split, p_nom,
-                                            float(sig.vl[0])))
+                models.append(_output_error(cand, params, effect, s, cfg, split, p_nom, float(sig.vl[0])))
             best_run = None
             for p_m, e_m in models:
                 run = simulate(p_m, e_m)
-                err = _mean_nrmse(channel_scores(measured, run.measured, slice(0, split)))
+                err = mean_nrmse(channel_scores(measured, run.measured, slice(0, split)))
                 if best_run is None or err < best_run[0]:
                     best_run = (err, run, p_m, e_m)
             _, run, params, effect = best_run
@@ -279,7 +267,18 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         return stribeck_reach(sig, cfg, split, cfg.h, nominal.blocks, theta0, opt.threshold, opt.penalty, score_of,
                               cache)
 
-    verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe, reach, pair_gain)
+    evidence = []
+
+    def hump():  # asked only when Stribeck friction was ranked and nothing earned its place
+        c = next(c for c in results if c.name == "stribeck_friction")
+        evidence.append(hump_evidence(s, cfg, split, p_nom, c.params, c.effect, sig.vl, fr_nom))
+        return evidence[-1]
+
+    verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe, reach, pair_gain, hump)
+    if verdict.by_free_run:  # the named model is the hump's free-run fit
+        ev = evidence[-1]
+        results = [replace(c, gain=ev.gain_nominal, freerun=ev.freerun, params=ev.params, effect=dict(ev.effect),
+                           simulated=ev.run.measured) if c.name == verdict.cause else c for c in results]
     return AuditResult(
         cause=verdict.cause, causes=verdict.causes, confident=verdict.confident, note=verdict.note,
         words=verdict.words, structure=verdict.structure, obeys=verdict.obeys, effect=verdict.effect,

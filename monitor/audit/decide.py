@@ -37,6 +37,11 @@ Rules (scores as in ``monitor.audit.audit``, threshold ``opt.threshold``):
    equation's held-out residual: the nearest candidate soaked up part of an effect that follows
    a measured signal no candidate has (a pressure sensor's gain error, a friction that grows
    with pressure).
+5. Otherwise, when nothing earns its place by the equations, Stribeck friction is named from
+   its **free run** (``monitor.audit.hump``): a hump the equations cannot tell from Coulomb plus
+   viscous friction at realistic noise, whose free run simulates both parts of the record
+   better than the nominal model with its Coulomb and viscous friction refitted the same way,
+   on a record whose velocity noise is below the slowest hump it would name (1 mm/s).
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import StribeckFriction
+from .hump import HUMP_GAIN, HUMP_TRAIN, V_NOISE_MAX
 from .reach import REACH_GRID, REACH_V_S
 from .verdict import EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape
 
@@ -110,6 +116,8 @@ class Verdict:
     stribeck_reach: float | None = None
     """The smallest Stribeck hump this record would have named [N] (``inf``: none up to the
     largest tried), given when the verdict says it cannot be excluded; else None."""
+    by_free_run: bool = False
+    """Stribeck friction named from its free run alone (rule 5)."""
 
 
 def _signals(sig) -> dict:
@@ -184,6 +192,28 @@ def _sliding_speed_words(sig, nominal) -> str:
             "faster would tell one")
 
 
+def _hump_words(ev) -> str:
+    return (f"its free run simulates the held-out part {100 * ev.gain:.1f} % better than the nominal model with "
+            f"its Coulomb and viscous friction refitted the same way ({100 * ev.gain_train:.1f} % on the training "
+            f"part; more than {100 * HUMP_GAIN:g} and {100 * HUMP_TRAIN:g} % name it)")
+
+
+def _hump_verdict(ev, stribeck, need: float, p_nom: dict) -> Verdict:
+    """Stribeck friction named from its free run (rule 5)."""
+    note = (f"named from its free run: on the equations the hump is not told from Coulomb plus viscous friction "
+            f"(held-out score {stribeck.score:.2f} <= {need:g}), but {_hump_words(ev)}")
+    confident = ev.gain > 2 * HUMP_GAIN
+    shift = param_shift_words(p_nom, ev.params)
+    gain = "" if not np.isfinite(ev.gain_nominal) else (
+        f"; the free run's held-out error falls {100 * ev.gain_nominal:.0f} % against the nominal model's")
+    words = (cause_words("stribeck_friction", ev.effect)
+             + (f". Without it the nominal fit reads {shift}" if shift else "")
+             + f". {note[0].upper()}{note[1:]}{gain}; "
+             + ("confident." if confident else f"not confident: a free-run gain below {200 * HUMP_GAIN:g} %."))
+    return Verdict("stribeck_friction", ("stribeck_friction",), confident, note, words, {}, effect=dict(ev.effect),
+                   by_free_run=True)
+
+
 def _reach_words(f_reach: float) -> str:
     v_s = f"v_s = {1e3 * REACH_V_S:.0f} mm/s"
     if math.isinf(f_reach):
@@ -213,11 +243,13 @@ def _structure_words(struct: dict) -> str:
 
 
 def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe=None, reach=None,
-           pair_gain=None) -> Verdict:
+           pair_gain=None, hump=None) -> Verdict:
     """The verdict from the ranked ``results`` (best score first); ``pair(a, b)`` fits two named
     candidates together and returns (score against ``a`` alone, fit, effects) or None;
     ``pair_gain(fit, effects)`` the free-run gain of such a pair [-] (None: not asked);
-    ``reach()`` the record's Stribeck reach [N] (``monitor.audit.reach``) or None."""
+    ``reach()`` the record's Stribeck reach [N] (``monitor.audit.reach``) or None;
+    ``hump()`` the free-run evidence of a Stribeck hump (``monitor.audit.hump.HumpEvidence``)
+    or None (not asked)."""
     thr = opt.threshold
     # a candidate with a caveat (Stribeck friction, partly collinear with Coulomb + viscous
     # friction) must score twice the threshold: clean steps and multisine records at fault-grade
@@ -246,6 +278,10 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         probed = _probed(probe, (), sig, split, results)
         if probed is not None:
             return probed
+        stribeck = next((c for c in results if c.name == "stribeck_friction"), None)
+        ev = hump() if hump is not None and stribeck is not None and sig.v_noise <= V_NOISE_MAX else None
+        if ev is not None and ev.named:
+            return _hump_verdict(ev, stribeck, need[stribeck.name], p_nom)
         passed = [c for c in results if c.score > need[c.name]]
         if passed:
             note = "no extension earns its place: " + "; ".join(_passed_over_words(c) for c in passed)
@@ -261,6 +297,11 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
             note += "; cannot be excluded: " + "; ".join(f"{c.name} ({c.caveat})" for c in hard)
             if any(c.name == "stribeck_friction" for c in hard):
                 note += "; " + _sliding_speed_words(sig, nominal)
+                if ev is not None:
+                    note += "; " + _hump_words(ev)
+                elif sig.v_noise > V_NOISE_MAX:
+                    note += (f"; its velocity noise ({1e3 * sig.v_noise:.1f} mm/s rms) is above the "
+                             f"{1e3 * V_NOISE_MAX:g} mm/s at which a free run tells a hump")
                 if reach is not None:
                     got = reach()
                     f_reach = math.inf if got is None else got

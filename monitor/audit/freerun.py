@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import minimize
 
 from plant_sim.integrate import DEFAULT_SUBSTEPS, run_fleet
 from hydromon.contract import SENSORS
@@ -27,7 +28,8 @@ from plant_sim.params import Effects, PlantParams, plant_vector
 from plant_sim.profiles import FromFile
 from plant_sim.simulate import command_grid
 
-__all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "stable_mass", "SENSORS"]
+__all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "mean_nrmse", "output_error_fit",
+           "stable_mass", "SENSORS"]
 
 _RHO, _CD = 880.0, 0.6
 
@@ -162,3 +164,32 @@ def channel_scores(measured: np.ndarray, simulated: np.ndarray, rows: slice | np
         nrmse = float(np.sqrt(np.mean(e * e)) / sd) if sd > 0 else math.inf
         out[name] = {"nrmse": nrmse, "fit": 100.0 * (1.0 - nrmse)}
     return out
+
+
+def mean_nrmse(scores: dict) -> float:
+    """The channels' mean NRMSE [-] of ``channel_scores``."""
+    return float(np.mean([scores[c]["nrmse"] for c in SENSORS]))
+
+
+def output_error_fit(starts, to_model, samples: np.ndarray, config: RigConfig, rows: slice, v0: float,
+                     fallback: dict | None = None, max_runs: int = 120):
+    """The model whose free run errs least over ``rows`` of ``samples``: Nelder-Mead from each
+    of ``starts`` (each evaluation one free run, ~6 ms for 30 s of record).
+
+    ``to_model(x) -> (params, effects)`` maps a point of the search (e.g. logs of the refined
+    parameters) to identified parameters (bus names, SI) and ``Effects`` fields; the run starts
+    at the first sample with velocity ``v0`` [m/s]. Returns the best (params, effects).
+    """
+    measured = np.asarray(samples, dtype=float)[:, 1:]
+
+    def cost(x):
+        p_m, e_m = to_model(x)
+        run = free_run(samples, config, p_m, Effects(**e_m), v0=v0, fallback=fallback)
+        # a diverged run costs more than any run that stays in range (NRMSE ~ 0.01-1), finitely:
+        # Nelder-Mead's simplex arithmetic needs finite values
+        return 1e3 if run.diverged else mean_nrmse(channel_scores(measured, run.measured, rows))
+
+    best = min((minimize(cost, x0, method="Nelder-Mead", options={"maxfev": max_runs, "xatol": 1e-3,
+                                                                   "fatol": 1e-6}) for x0 in starts),
+               key=lambda r: r.fun)
+    return to_model(best.x)
