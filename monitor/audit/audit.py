@@ -277,8 +277,9 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe, reach, pair_gain, hump)
     if verdict.by_free_run:  # the named model is the hump's free-run fit
         ev = evidence[-1]
-        results = [replace(c, gain=ev.gain_nominal, freerun=ev.freerun, params=ev.params, effect=dict(ev.effect),
-                           simulated=ev.run.measured) if c.name == verdict.cause else c for c in results]
+        results = [replace(c, value=ev.effect["stribeck_v_s"], gain=ev.gain_nominal, freerun=ev.freerun,
+                           params=ev.params, effect=dict(ev.effect), plausible=True, simulated=ev.run.measured)
+                   if c.name == verdict.cause else c for c in results]
     return AuditResult(
         cause=verdict.cause, causes=verdict.causes, confident=verdict.confident, note=verdict.note,
         words=verdict.words, structure=verdict.structure, obeys=verdict.obeys, effect=verdict.effect,

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import StribeckFriction
-from .hump import HUMP_GAIN, HUMP_TRAIN, V_NOISE_MAX
+from .hump import HUMP_GAIN, HUMP_TRAIN, V_NOISE_MAX, V_S_MIN
 from .reach import REACH_GRID, REACH_V_S
 from .verdict import EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape
 
@@ -193,23 +193,34 @@ def _sliding_speed_words(sig, nominal) -> str:
 
 
 def _hump_words(ev) -> str:
-    return (f"its free run simulates the held-out part {100 * ev.gain:.1f} % better than the nominal model with "
+    """The free-run comparison of a hump with refitted Coulomb friction, in words."""
+    if not ev.compared:
+        return "a hump's free run could not be compared with refitted Coulomb friction (a free run diverged)"
+    said = (f"its free run simulates the held-out part {100 * ev.gain:.1f} % better than the nominal model with "
             f"its Coulomb and viscous friction refitted the same way ({100 * ev.gain_train:.1f} % on the training "
             f"part; more than {100 * HUMP_GAIN:g} and {100 * HUMP_TRAIN:g} % name it)")
+    if not ev.plausible:
+        said += (f", but the refined hump ({ev.effect['stribeck_F_s']:.0f} N fading over "
+                 f"{1e3 * ev.effect['stribeck_v_s']:.1f} mm/s) is not a breakaway hump (F_s > 0, v_s of "
+                 f"{1e3 * V_S_MIN:g}-{1e3 * StribeckFriction.V_S_MAX:g} mm/s)")
+    return said
 
 
 def _hump_verdict(ev, stribeck, need: float, p_nom: dict) -> Verdict:
     """Stribeck friction named from its free run (rule 5)."""
-    note = (f"named from its free run: on the equations the hump is not told from Coulomb plus viscous friction "
-            f"(held-out score {stribeck.score:.2f} <= {need:g}), but {_hump_words(ev)}")
+    eq = (f"on the equations the hump is not told from Coulomb plus viscous friction (held-out score "
+          f"{stribeck.score:.2f} <= {need:g})" if stribeck.score <= need
+          else f"on the equations the hump was passed over ({_passed_over_words(stribeck)})")
+    note = f"named from its free run: {eq}, but {_hump_words(ev)}"
     confident = ev.gain > 2 * HUMP_GAIN
     shift = param_shift_words(p_nom, ev.params)
     gain = "" if not np.isfinite(ev.gain_nominal) else (
-        f"; the free run's held-out error falls {100 * ev.gain_nominal:.0f} % against the nominal model's")
+        f"; against the nominal model's, the free run's held-out error falls {100 * ev.gain_nominal:.0f} %")
     words = (cause_words("stribeck_friction", ev.effect)
              + (f". Without it the nominal fit reads {shift}" if shift else "")
              + f". {note[0].upper()}{note[1:]}{gain}; "
-             + ("confident." if confident else f"not confident: a free-run gain below {200 * HUMP_GAIN:g} %."))
+             + ("confident." if confident else
+                f"not confident: it simulates less than {200 * HUMP_GAIN:g} % better than refitted Coulomb friction."))
     return Verdict("stribeck_friction", ("stribeck_friction",), confident, note, words, {}, effect=dict(ev.effect),
                    by_free_run=True)
 
@@ -306,6 +317,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
                     got = reach()
                     f_reach = math.inf if got is None else got
                     note += "; " + _reach_words(f_reach)
+        if ev is not None and not any(c.name == "stribeck_friction" for c in hard):
+            note += "; for stribeck_friction, " + _hump_words(ev)
         return Verdict("none", (), True, note, "the record matches the nominal model: no named effect", struct,
                        stribeck_reach=f_reach)
 
