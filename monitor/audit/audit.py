@@ -46,7 +46,7 @@ from hydromon.contract import RigConfig
 from plant_sim.params import Effects
 
 from .candidates import LIBRARY
-from .freerun import channel_scores, free_run, mean_nrmse, output_error_fit
+from .freerun import channel_scores, free_run, free_run_gain, mean_nrmse, output_error_fit
 from .residuals import (BLOCKS, Fit, Spec, build_blocks, fit_blocks, improves_training, merge_specs,
                         nominal_params, signals)
 from .verdict import EQUATION_OF, POSITIVE_AUDIT, impossible_params  # noqa: F401  (re-exported)
@@ -83,11 +83,6 @@ def _mse_split(fit: Fit, split: int, floors: tuple[dict, dict] | None = None) ->
 
 def _log_ratio(nom: dict, ext: dict) -> float:
     return sum(math.log(nom[g] / ext[g]) for g in BLOCKS if nom[g] > 0 and ext[g] > 0)
-
-
-def _gain(run, scores: dict, nominal_scores: dict) -> float:
-    """Free-run gain [-]: 1 - the held-out mean NRMSE over the nominal model's (-inf: diverged)."""
-    return -math.inf if run.diverged else 1.0 - mean_nrmse(scores) / mean_nrmse(nominal_scores)
 
 
 def _output_error(cand, params, effect, s, cfg, split, fallback, v0):
@@ -222,7 +217,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             _, run, params, effect = best_run
             sim = run.measured
             fr = channel_scores(measured, sim, test)
-            gain = _gain(run, fr, fr_nom)
+            gain = free_run_gain(run, fr, fr_nom)
         results.append(CandidateResult(
             name=cand.name, equation=cand.equation, value=value, score=float(score),
             residual_ratio={g: te[g] / nom_te[g] if nom_te[g] > 0 else 1.0 for g in BLOCKS},
@@ -253,7 +248,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
 
     def pair_gain(fit, effect):  # two extensions fitted together (``pair``), simulated as one
         run2 = simulate(nominal_params(fit), effect)
-        return _gain(run2, channel_scores(measured, run2.measured, test), fr_nom)
+        return free_run_gain(run2, channel_scores(measured, run2.measured, test), fr_nom)
 
     def probe(names):
         return probe_fits(names, fits, sig, cfg, split, theta0, cache, nominal, floors, opt.penalty)
@@ -267,16 +262,12 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         return stribeck_reach(sig, cfg, split, cfg.h, nominal.blocks, theta0, opt.threshold, opt.penalty, score_of,
                               cache)
 
-    evidence = []
-
-    def hump():  # asked only when Stribeck friction was ranked and nothing earned its place
-        c = next(c for c in results if c.name == "stribeck_friction")
-        evidence.append(hump_evidence(s, cfg, split, p_nom, c.params, c.effect, sig.vl, fr_nom))
-        return evidence[-1]
+    def hump(stribeck):  # asked only when nothing earned its place
+        return hump_evidence(s, cfg, split, p_nom, stribeck.params, stribeck.effect, sig.vl, fr_nom)
 
     verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe, reach, pair_gain, hump)
-    if verdict.by_free_run:  # the named model is the hump's free-run fit
-        ev = evidence[-1]
+    ev = verdict.hump
+    if ev is not None:  # the named model is the hump's free-run fit
         results = [replace(c, value=ev.effect["stribeck_v_s"], gain=ev.gain_nominal, freerun=ev.freerun,
                            params=ev.params, effect=dict(ev.effect), plausible=True, simulated=ev.run.measured)
                    if c.name == verdict.cause else c for c in results]

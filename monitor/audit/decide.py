@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import StribeckFriction
-from .hump import HUMP_GAIN, HUMP_TRAIN, V_NOISE_MAX, V_S_MIN
+from .hump import HUMP_GAIN, HUMP_TRAIN, V_NOISE_MAX, V_S_MIN, HumpEvidence
 from .reach import REACH_GRID, REACH_V_S
 from .verdict import EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape
 
@@ -116,8 +116,9 @@ class Verdict:
     stribeck_reach: float | None = None
     """The smallest Stribeck hump this record would have named [N] (``inf``: none up to the
     largest tried), given when the verdict says it cannot be excluded; else None."""
-    by_free_run: bool = False
-    """Stribeck friction named from its free run alone (rule 5)."""
+    hump: HumpEvidence | None = None
+    """The free-run evidence (``monitor.audit.hump.HumpEvidence``) Stribeck friction was named
+    from alone (rule 5); else None."""
 
 
 def _signals(sig) -> dict:
@@ -222,7 +223,7 @@ def _hump_verdict(ev, stribeck, need: float, p_nom: dict) -> Verdict:
              + ("confident." if confident else
                 f"not confident: it simulates less than {200 * HUMP_GAIN:g} % better than refitted Coulomb friction."))
     return Verdict("stribeck_friction", ("stribeck_friction",), confident, note, words, {}, effect=dict(ev.effect),
-                   by_free_run=True)
+                   hump=ev)
 
 
 def _reach_words(f_reach: float) -> str:
@@ -259,8 +260,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
     candidates together and returns (score against ``a`` alone, fit, effects) or None;
     ``pair_gain(fit, effects)`` the free-run gain of such a pair [-] (None: not asked);
     ``reach()`` the record's Stribeck reach [N] (``monitor.audit.reach``) or None;
-    ``hump()`` the free-run evidence of a Stribeck hump (``monitor.audit.hump.HumpEvidence``)
-    or None (not asked)."""
+    ``hump(stribeck)`` the free-run evidence of a Stribeck hump (``monitor.audit.hump.HumpEvidence``)
+    from the Stribeck candidate's result, or None (not asked)."""
     thr = opt.threshold
     # a candidate with a caveat (Stribeck friction, partly collinear with Coulomb + viscous
     # friction) must score twice the threshold: clean steps and multisine records at fault-grade
@@ -290,7 +291,7 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         if probed is not None:
             return probed
         stribeck = next((c for c in results if c.name == "stribeck_friction"), None)
-        ev = hump() if hump is not None and stribeck is not None and sig.v_noise <= V_NOISE_MAX else None
+        ev = hump(stribeck) if hump is not None and stribeck is not None and sig.v_noise <= V_NOISE_MAX else None
         if ev is not None and ev.named:
             return _hump_verdict(ev, stribeck, need[stribeck.name], p_nom)
         passed = [c for c in results if c.score > need[c.name]]
@@ -306,7 +307,7 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         f_reach = None
         if hard:
             note += "; cannot be excluded: " + "; ".join(f"{c.name} ({c.caveat})" for c in hard)
-            if any(c.name == "stribeck_friction" for c in hard):
+            if stribeck in hard:
                 note += "; " + _sliding_speed_words(sig, nominal)
                 if ev is not None:
                     note += "; " + _hump_words(ev)
@@ -317,7 +318,7 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
                     got = reach()
                     f_reach = math.inf if got is None else got
                     note += "; " + _reach_words(f_reach)
-        if ev is not None and not any(c.name == "stribeck_friction" for c in hard):
+        if ev is not None and stribeck not in hard:
             note += "; for stribeck_friction, " + _hump_words(ev)
         return Verdict("none", (), True, note, "the record matches the nominal model: no named effect", struct,
                        stribeck_reach=f_reach)

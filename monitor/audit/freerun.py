@@ -28,8 +28,8 @@ from plant_sim.params import Effects, PlantParams, plant_vector
 from plant_sim.profiles import FromFile
 from plant_sim.simulate import command_grid
 
-__all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "mean_nrmse", "output_error_fit",
-           "stable_mass", "SENSORS"]
+__all__ = ["FreeRun", "plant_from_params", "free_run", "channel_scores", "mean_nrmse", "free_run_gain",
+           "output_error_fit", "stable_mass", "SENSORS"]
 
 _RHO, _CD = 880.0, 0.6
 
@@ -169,6 +169,12 @@ def channel_scores(measured: np.ndarray, simulated: np.ndarray, rows: slice | np
 def mean_nrmse(scores: dict) -> float:
     """The channels' mean NRMSE [-] of ``channel_scores``."""
     return float(np.mean([scores[c]["nrmse"] for c in SENSORS]))
+
+
+def free_run_gain(run: FreeRun, scores: dict, nominal_scores: dict) -> float:
+    """Free-run gain [-]: 1 - the mean NRMSE of ``run`` (its ``scores``) over the nominal
+    model's (``nominal_scores``); -inf when the run diverged."""
+    return -math.inf if run.diverged else 1.0 - mean_nrmse(scores) / mean_nrmse(nominal_scores)
 
 
 def output_error_fit(starts, to_model, samples: np.ndarray, config: RigConfig, rows: slice, v0: float,

@@ -36,7 +36,7 @@ import numpy as np
 from plant_sim.params import Effects
 
 from .candidates import StribeckFriction
-from .freerun import FreeRun, channel_scores, free_run, mean_nrmse, output_error_fit
+from .freerun import FreeRun, channel_scores, free_run, free_run_gain, mean_nrmse, output_error_fit
 
 __all__ = ["HumpEvidence", "hump_evidence", "HUMP_GAIN", "HUMP_TRAIN", "V_S_MIN", "V_NOISE_MAX", "FIT_SPAN"]
 
@@ -160,6 +160,5 @@ def hump_evidence(samples: np.ndarray, config, split: int, p_nom: dict, params: 
         c = mean_nrmse(channel_scores(measured, run_c.measured, part_rows))
         return 1.0 - mean_nrmse(channel_scores(measured, run_h.measured, part_rows)) / c
     fr = channel_scores(measured, run_h.measured, test)
-    g_nom = -math.inf if run_h.diverged else 1.0 - mean_nrmse(fr) / mean_nrmse(nominal_freerun)
-    return HumpEvidence(gain=gain(test), gain_train=gain(train), gain_nominal=g_nom, params=p_h, effect=e_h,
-                        freerun=fr, run=run_h)
+    return HumpEvidence(gain=gain(test), gain_train=gain(train), gain_nominal=free_run_gain(run_h, fr, nominal_freerun),
+                        params=p_h, effect=e_h, freerun=fr, run=run_h)
