@@ -31,6 +31,12 @@ __all__ = ["Candidate", "LIBRARY", "LoadOffset", "StribeckFriction", "ValveDeadB
 
 _P_MIN_AIR = 1e4  # [Pa] as plant_sim.model
 
+LOG_BOUND = 30.0
+"""The output-error refinement searches the logs of its parameters (SI) within +- this: e^-30
+is about 1e-13. Where no hump lowers the free-run error, its F_s goes to 0 and the error is flat
+in v_s; Nelder-Mead then walked a noise-free load-offset record's Stribeck velocity down to
+2e-18 m/s, and from there to an exp() that underflowed to 0 m/s, which no ``Effects`` holds."""
+
 
 class Candidate:
     """Base of the library: a named model extension.
@@ -185,7 +191,7 @@ class StribeckFriction(Candidate):
         starts += [np.log([(1.0 - k) * level, 2.0 * b_fv, k * level, effect["stribeck_v_s"]]) for k in (0.6, 0.85)]
 
         def to_model(x):
-            f_c, b_fv, f_s, v_s = np.exp(x).tolist()
+            f_c, b_fv, f_s, v_s = np.exp(np.clip(x, -LOG_BOUND, LOG_BOUND)).tolist()
             return {**params, "f_c": f_c, "B_fv": b_fv}, {"stribeck_F_s": f_s, "stribeck_v_s": v_s}
         return starts, to_model
 

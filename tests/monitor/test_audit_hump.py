@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from hydromon.tools.audit_sweep import _record
 from monitor.audit import AuditOptions, audit
+from monitor.audit.candidates import StribeckFriction
 from monitor.audit.freerun import FreeRun, channel_scores, free_run, mean_nrmse, output_error_fit
 from monitor.audit.hump import FIT_SPAN, HUMP_GAIN, HumpEvidence, hump_evidence
 from monitor.audit.residuals import Spec, build_blocks, fit_blocks, nominal_params, signals
@@ -115,3 +116,16 @@ def test_the_output_error_fit_never_ends_worse_than_its_start(f_c, b_scale):
     x0 = np.log([f_c, max(p_nom["B_fv"], 1.0) * b_scale])
     p, _ = output_error_fit([x0], to_model, part, cfg, rows, 0.0, p_nom, max_runs=15)
     assert err(np.log([p["f_c"], p["B_fv"]])) <= err(x0) + 1e-12
+
+
+@settings(max_examples=200, deadline=None)
+@given(x=st.lists(st.floats(-1e6, 1e6), min_size=4, max_size=4))
+def test_every_point_of_the_hump_s_output_error_search_is_a_model_the_plant_holds(x):
+    # Nelder-Mead walks where the free-run error is flat (no hump: F_s -> 0 leaves v_s free): a
+    # noise-free load-offset record's Stribeck velocity went to 2e-18 m/s and on to an exp() of 0
+    p = {"f_c": 100.0, "B_fv": 5000.0, "m": 120.0}
+    _, to_model = StribeckFriction().free_run_variables(p, {"stribeck_F_s": 50.0, "stribeck_v_s": 2e-18})
+    params, effect = to_model(np.array(x))
+    e = Effects(**effect)
+    assert e.stribeck_F_s > 0.0 and e.stribeck_v_s > 0.0
+    assert math.isfinite(params["f_c"]) and params["f_c"] > 0.0 and math.isfinite(params["B_fv"])
