@@ -1,7 +1,7 @@
 """The audit's sweep: every effect on every input profile, health band and noise level.
 
 ``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]
-[--fixed] [--duration S] [--only NAME | --ladder NAME | --clean N]`` prints the tables of
+[--fixed] [--duration S] [--only NAME | --ladder NAME | --clean N [--noise LIST]]`` prints the tables of
 ``docs/audit.md``. Every record is 20 s (``--duration``) at 100 Hz from ``plant_sim``; its seed is
 ``BASE[seeds] + its index`` in the fixed list below (the ``tune`` seeds were used to set the
 audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen). The seed
@@ -33,7 +33,9 @@ with a load offset and of a clean one.
 4 and 8 times its claimed limit at each noise level, on every profile, each at the five bands'
 severities (160 records; seed ``BASE + 10000 + its index`` in that list). ``--clean N`` audits N
 clean records for each profile, band and noise level ``none``, ``realistic``, ``stress`` (seed
-``BASE + 20000 + its index``): how often a record without an effect is named one.
+``BASE + 20000 + its index``): how often a record without an effect is named one; ``--noise``
+sets its noise levels (e.g. ``pct:0.01,pct:0.02``: 1e-4 and 2e-4 of each sensor's span, between
+``realistic`` and ``stress``).
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ DURATION = 20.0  # [s]
 PROFILES = ("paper-id", "paper-var", "steps", "multisine")
 BANDS = (0.1, 0.3, 0.5, 0.7, 0.9)  # health severity in the middle of each of the five bands
 NOISES = ("none", "realistic")
+CLEAN_NOISES = NOISES + ("stress",)  # a clean record's noise levels (--clean; the main list's clean records)
 BASE = {"tune": 100_000, "heldout": 900_000}
 
 # effect -> (unit shown, {noise: claimed limit}, large magnitude, Effects kwargs from a magnitude)
@@ -94,7 +97,7 @@ def _cases():
                     out.append(("one", {name: v}, profile, BANDS[len(out) % 5], noise, step))
     for profile in PROFILES:
         for sev in BANDS:
-            for noise in NOISES + ("stress",):
+            for noise in CLEAN_NOISES:
                 out.append(("clean", {}, profile, sev, noise, ""))
     for a, va, b, vb in PAIRS:
         for profile in PROFILES:
@@ -117,9 +120,9 @@ def _ladder_cases(name):
     return out
 
 
-def _clean_cases(repeats):
-    """``--clean N``: N clean records per profile, band and noise level (stress included)."""
-    return [("clean", {}, profile, sev, noise, f"repeat {k}") for noise in NOISES + ("stress",)
+def _clean_cases(repeats, noises=CLEAN_NOISES):
+    """``--clean N``: N clean records per profile, band and noise level (``--noise``)."""
+    return [("clean", {}, profile, sev, noise, f"repeat {k}") for noise in noises
             for profile in PROFILES for sev in BANDS for k in range(repeats)]
 
 
@@ -212,6 +215,9 @@ def main(argv=None):
                     help="sweep this effect at 1, 2, 4 and 8 times its claimed limit on every profile and band")
     ap.add_argument("--clean", type=int, default=None, metavar="N",
                     help="audit N clean records per profile, band and noise level instead")
+    ap.add_argument("--noise", default=",".join(CLEAN_NOISES), metavar="LIST",
+                    help="with --clean: comma-separated noise models (none, realistic, stress, or pct:F, F %% of "
+                         f"each sensor's span; default {','.join(CLEAN_NOISES)})")
     ap.add_argument("--fixed", action="store_true",
                     help="every record on its profile's default parameters at its band's centre (no draw)")
     ap.add_argument("--duration", type=float, default=DURATION, metavar="S",
@@ -219,13 +225,23 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.clean is not None and (args.clean < 1 or args.ladder):
         ap.error("--clean takes N >= 1, and not with --ladder")
+    from plant_sim.noise import noise_model
+
+    noises = tuple(n.strip() for n in args.noise.split(","))
+    try:
+        for n in noises:
+            noise_model(n)
+    except ValueError as e:
+        ap.error(f"--noise: {e}")
+    if args.noise != ap.get_default("noise") and not args.clean:
+        ap.error("--noise goes with --clean")
     if not args.duration >= 5.0:  # also refuses nan
         ap.error(f"--duration must be at least 5 s (got {args.duration:g})")
     base = BASE[args.seeds] if args.seed_base is None else args.seed_base
     if args.ladder:
         cases, first, only = _ladder_cases(args.ladder), base + LADDER_SEED, None
     elif args.clean:
-        cases, first, only = _clean_cases(args.clean), base + CLEAN_SEED, None
+        cases, first, only = _clean_cases(args.clean, noises), base + CLEAN_SEED, None
     else:
         cases, first, only = _cases(), base, args.only  # --only selects among the main list's records
     todo = [(i, c, first + i, args.fixed, args.duration) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
@@ -250,7 +266,7 @@ def main(argv=None):
         _print_ladder(args.ladder, cases, results, base, wall, args.duration)
         return
     if args.clean:
-        _print_clean(cases, results, base, wall, args.duration)
+        _print_clean(cases, results, base, wall, args.duration, noises)
         return
     _print_tables(cases, results, args.seeds, base, wall, args.duration)
     (secs, cause), (secs_clean, cause_clean) = _time_60s({"load_offset": 1000.0}), _time_60s({})
@@ -324,12 +340,12 @@ def _print_ladder(name, cases, results, base, wall, duration):
                   f"{effects} {profile} severity {severity} {noise}")
 
 
-def _print_clean(cases, results, base, wall, duration):
+def _print_clean(cases, results, base, wall, duration, noises=CLEAN_NOISES):
     print(f"Clean records, base {base} (seeds base + {CLEAN_SEED} + index), {len(results)} records of "
           f"{duration:g} s, {wall:.0f} s wall.\n")
     print("| noise | named none | named an effect | unexplained | refused |")
     print("|---|---|---|---|---|")
-    for noise in NOISES + ("stress",):
+    for noise in noises:
         got = [results[i][0] for i in results if cases[i][4] == noise]
         named = sum(g not in (["none"], ["unexplained"], ["refused"]) for g in got)
         print(f"| {noise} | {got.count(['none'])}/{len(got)} | {named} | {got.count(['unexplained'])} | "

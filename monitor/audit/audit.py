@@ -263,7 +263,16 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                               cache)
 
     def hump(stribeck):  # asked only when nothing earned its place
-        return hump_evidence(s, cfg, split, p_nom, stribeck.params, stribeck.effect, sig.vl, fr_nom)
+        cand, others = fits[stribeck.name][0], []
+        for v_s in cand.V_S_GRID:  # the hump model's identification at each searched v_s
+            if v_s == stribeck.value:
+                continue
+            try:
+                f = fit_at(cand, v_s)[2]
+            except ValueError:  # as in the search: a value the record's rows cannot fit
+                continue
+            others.append((nominal_params(f), cand.effects(v_s, f.theta)))
+        return hump_evidence(s, cfg, split, p_nom, stribeck.params, stribeck.effect, sig.vl, fr_nom, others)
 
     verdict = decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe, reach, pair_gain, hump)
     ev = verdict.hump

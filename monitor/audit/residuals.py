@@ -44,7 +44,7 @@ import numpy as np
 from hydromon.contract import RigConfig
 
 from .eiv import compensated_lstsq
-from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, signals  # noqa: F401  (re-exported)
+from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, noise_at, signals  # noqa: F401  (re-exported)
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
@@ -56,6 +56,7 @@ VAR_FLOOR = {"force": 1.0, "rest": 4.0, "chamber": 1e-14, "valve": 4e-14}
 """Resolution floors of the blocks' residual variances [N^2, N^2, (m^3/s)^2, m^2] (1 N, 2 N,
 1e-7 m^3/s, 0.2 um rms), well below realistic sensor noise: on near noise-free records a
 scale-free ratio of tiny model-approximation errors would otherwise look like evidence."""
+REST_NOISE_ROWS = 50  # rest rows below which x1's noise there is not told apart: the record's estimate serves
 REST_V_RESOLUTION = 2e-3  # [m/s] rest rows need a velocity resolution (3 noise sigmas) finer than this
 STATIC_GRID = np.linspace(0.0, 1200.0, 121)  # [N] static friction above Coulomb searched by ``static_search``
 RESOLVE = {"force": 0.05, "rest": 0.0, "chamber": 0.0, "valve": 0.0}
@@ -229,9 +230,12 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     for name, fn in spec.force_cols.items():
         fcols[name] = sig.smooth(fn(sig, cfg, x1l, vl, vs), w)
     fX = np.column_stack([c[rows] for c in fcols.values()])[keep]
-    fnl = np.zeros(fX.shape + (2,))
-    fnl[:, 0, 0] = sig.sigma[0] * sig.gain_f[2]  # acceleration (2nd-derivative filter)
-    fnl[:, 1, 1] = sig.sigma[0] * sig.gain_f[1]  # velocity (1st-derivative filter, orthogonal)
+    def column_noise(n_rows, sigma_x1):  # the noise x1 carries into the columns m and B_fv, per row
+        out = np.zeros((n_rows, len(fcols), 2))
+        out[:, 0, 0] = sigma_x1 * sig.gain_f[2]  # acceleration (2nd-derivative filter)
+        out[:, 1, 1] = sigma_x1 * sig.gain_f[1]  # velocity (1st-derivative filter, orthogonal)
+        return out
+    fnl = column_noise(len(fX), sig.sigma[0])
 
     x1s, v = sig.smooth(x1), sig.deriv(x1, 1)
     p1s, p2s = sig.smooth(p1), sig.smooth(p2)
@@ -246,9 +250,11 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     # would pass for a stick)
     still = (slow[rows] > 0) & (3.0 * sig.v_noise < REST_V_RESOLUTION)
     rX = np.column_stack([c[rows] for c in fcols.values()])[still]
+    # x1's noise where the piston stands: the whole record's estimate holds a stick-slip motion's jerks
+    sigma_rest = noise_at(x1, rows[still]) if still.sum() >= REST_NOISE_ROWS else sig.sigma[0]
     rest = Block("rest", fy[still], rX, tuple(fcols), rows[still], np.ones(int(still.sum()), bool),
                  static=("f_c",) + tuple(spec.static_cols), margin=2.0 * sigma_net,
-                 search=spec.static_search)
+                 search=spec.static_search, noise_load=column_noise(len(rX), sigma_rest))
 
     # chambers: V_i x_i' = (V_i x_i)' -+ A_i v x_i
     v1 = cfg.V10 + a1 * x1
@@ -345,7 +351,8 @@ class Fit:
             # one row a dead-zone margin (2 noise sigmas) beyond it is noise, not evidence: on a
             # clean 20 s record, 20 held-out rest rows with one noise excursion of 15 N score a
             # candidate that widens the dead zone 0.27-1.0 against a threshold of 0.15
-            floor = max(VAR_FLOOR[name], self.blocks[name].margin ** 2 / len(r))
+            allow = rest_allowance(self.blocks[name], self.theta["force"])[rows_mask]
+            floor = max(VAR_FLOOR[name], float(np.mean(allow ** 2)) / len(r))
         else:
             floor = max(0.01 * raw, VAR_FLOOR[name], floor)
         noise = float(np.mean(self.noise_terms[name][rows_mask])) + self.blocks[name].y_noise
@@ -356,15 +363,28 @@ def _dead_zone(r: np.ndarray, level: float) -> np.ndarray:
     return np.sign(r) * np.maximum(np.abs(r) - level, 0.0)
 
 
+def rest_allowance(b: Block, th_force: dict) -> np.ndarray:
+    """Each rest row's noise allowance [N]: two sigmas of its net force's noise, the pressures'
+    (``Block.margin``) and what x1's noise carries in through the fitted m a and (B + f_v) v.
+    With x1 noise of 10 um and pressure noise of 1.2 kPa (1e-4 of the paper's sensor spans) m a
+    carried 23 N rms against the pressures' 5 N, and a two-sigma margin of the pressures alone
+    left 14 % of a clean record's rest rows beyond its static level: a static level above
+    Coulomb friction took them, and Stribeck friction scored 2.1."""
+    th = np.array([th_force.get(c, 0.0) for c in b.columns])
+    col = np.sum(np.einsum("rck,c->rk", b.noise_load, th) ** 2, axis=1) if b.noise_load is not None else 0.0
+    return np.sqrt(b.margin ** 2 + 4.0 * col) * np.ones(len(b.y))
+
+
 def _rest_residuals(b: Block, th_force: dict, train: np.ndarray) -> tuple[np.ndarray, float]:
     """Net force beyond the static friction level on the rest rows, and the extra level F_s."""
     cols = [c for c in b.columns if c not in b.static]
     idx = [b.columns.index(c) for c in cols]
     net = b.y - b.X[:, idx] @ np.array([th_force[c] for c in cols])
-    level = max(sum(th_force[c] for c in b.static), 0.0) + b.margin
+    level = max(sum(th_force[c] for c in b.static), 0.0) + rest_allowance(b, th_force)
     if not b.search:
         return _dead_zone(net, level), 0.0
-    costs = [float(np.mean(_dead_zone(net[train], level + f) ** 2)) if train.any() else 0.0 for f in STATIC_GRID]
+    costs = [float(np.mean(_dead_zone(net[train], level[train] + f) ** 2)) if train.any() else 0.0
+             for f in STATIC_GRID]
     f_s = float(STATIC_GRID[int(np.argmin(costs))])
     return _dead_zone(net, level + f_s), f_s
 

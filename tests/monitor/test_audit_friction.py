@@ -26,6 +26,11 @@ def test_a_30_newton_stribeck_hump_without_noise_is_named(profile, severity, see
     # realistic noise: a load offset took 6 of 439 N^2 off the held-out force residual (8.5 N^2
     # beyond noise) and scored 0.66; the noise's mean square scatters by about 100 N^2 there
     ("multisine", 0.3, "realistic", 2200217),
+    # x1 noise 10 um, pressures 1.2 kPa (1e-4 of each span): m a carried 23 N rms of x1's noise
+    # onto the rest rows against a 10 N dead-zone margin of the pressures' noise, and a static
+    # level above Coulomb friction (Stribeck friction's) took what stood beyond it: score 2.1
+    ("paper-id:offset=2.086,amplitude=0.975,freq=0.622", 0.846, "pct:0.01", 11730004),
+    ("steps:low=1.764,high=2.508,period=2.252", 0.514, "pct:0.01", 11730012),  # the same, 0.56
 ])
 def test_a_clean_record_is_not_named(profile, severity, noise, seed):
     s, cfg = _record("clean", {}, profile, severity, noise, seed)

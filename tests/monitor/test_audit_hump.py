@@ -21,8 +21,9 @@ from plant_sim.params import Effects
 
 def test_a_hump_the_equations_miss_at_realistic_noise_is_named_from_its_free_run():
     """80 N above Coulomb at realistic noise on the paper's sine (Stribeck ladder, record 81):
-    the equations score the hump -0.02, the free run with it errs 7.8 % less on the held-out
-    part than the nominal model with its Coulomb and viscous friction refitted."""
+    the equations score the hump -0.02, the free run with it errs 9.9 % less on the held-out
+    part (5.7 % on the training part) than the nominal model with its Coulomb and viscous
+    friction refitted."""
     s, cfg = _record("one", {"stribeck_friction": 80.0}, "paper-id:offset=1.930,amplitude=0.614,freq=1.095",
                      0.222, "realistic", 11710081)
     res = audit(s, cfg, AuditOptions(free_run=False))
@@ -33,8 +34,11 @@ def test_a_hump_the_equations_miss_at_realistic_noise_is_named_from_its_free_run
     best = res.best
     assert best.simulated is not None and best.effect == res.effect
     assert best.gain > 0.0 and best.value == res.effect["stribeck_v_s"] and best.plausible
+    rerun = free_run(s, cfg, best.params, Effects(**best.effect), v0=float(signals(s, cfg.h).vl[0]),
+                     fallback=res.params_nominal)
+    np.testing.assert_allclose(best.simulated, rerun.measured)  # the run shown is the hump model's
     nominal, extended = res.gain["x1"]["nrmse_nominal"], res.gain["x1"]["nrmse_extended"]
-    assert extended < 0.8 * nominal, (nominal, extended)  # the hump's run simulates x1 better
+    assert extended < nominal, (nominal, extended)  # and it simulates x1 better than the nominal model
 
 
 def test_a_clean_record_whose_hump_fit_barely_simulates_better_is_not_named():

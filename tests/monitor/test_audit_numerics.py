@@ -13,8 +13,8 @@ from scipy.signal import cont2discrete, lfilter, savgol_filter
 from monitor.audit.candidates import _sagged_factor
 from monitor.audit.freerun import channel_scores, free_run
 from monitor.audit.eiv import COMPENSATION_MAX, compensated_lstsq, noise_share
-from monitor.audit.residuals import orifice_factors, valve_response
-from monitor.audit.signals import _savgol
+from monitor.audit.residuals import Block, orifice_factors, rest_allowance, valve_response
+from monitor.audit.signals import _savgol, noise_at
 from monitor.audit.valve_fit import _filter2, _valve_filter
 from plant_sim.degradation import degrade
 from plant_sim.model import orifice_z
@@ -156,3 +156,35 @@ def test_the_noise_compensation_never_leaves_an_indefinite_normal_matrix(seed, n
     used = S if share <= COMPENSATION_MAX else S * COMPENSATION_MAX / share
     assert scipy.linalg.eigh(G - used, G, eigvals_only=True)[0] >= 1.0 - COMPENSATION_MAX - 1e-6
     np.testing.assert_allclose(th, np.linalg.solve(G - used, X.T @ y), rtol=1e-6, atol=1e-9 * np.max(np.abs(th)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(c=st.lists(st.floats(-1e3, 1e3), min_size=4, max_size=4), k=st.floats(-1e3, 1e3),
+       start=st.integers(0, 400), n=st.integers(10, 400))
+def test_noise_at_reads_no_noise_on_a_cubic_and_scales_with_the_signal(c, k, start, n):
+    t = np.arange(1000) * 0.01
+    rows = np.arange(start, start + n)
+    cubic = c[0] + c[1] * t + c[2] * t ** 2 + c[3] * t ** 3  # a 4th difference of a cubic is 0
+    assert noise_at(cubic, rows) <= 1e-9 * (1.0 + np.max(np.abs(cubic)))
+    x = np.random.default_rng(int(start)).standard_normal(1000)
+    assert noise_at(k * x, rows) == pytest.approx(abs(k) * noise_at(x, rows), rel=1e-9, abs=1e-12)
+
+
+def test_noise_at_reads_white_noise_where_asked_and_ignores_motion_elsewhere():
+    rng = np.random.default_rng(5)
+    t = np.arange(4000) * 0.01
+    x = np.where(t < 20.0, 0.01 * np.sin(40.0 * t) ** 3, 0.0) + 5e-6 * rng.standard_normal(len(t))
+    still = np.arange(2100, 3900)
+    assert noise_at(x, still) == pytest.approx(5e-6, rel=0.1)
+    assert noise_at(x, np.arange(100, 1900)) > 3 * 5e-6  # where it moves, the motion reads as noise
+    assert np.isnan(noise_at(x, np.array([], dtype=int)))
+
+
+def test_the_rest_rows_allowance_is_the_pressures_margin_plus_what_x1_s_noise_carries():
+    load = np.zeros((3, 4, 2))
+    load[:, 0, 0], load[:, 1, 1] = 0.01, 2e-4  # acceleration [m/s^2], velocity [m/s] noise rms
+    b = Block("rest", np.zeros(3), np.zeros((3, 4)), ("m", "B_fv", "f_c", "K_t"), np.arange(3),
+              np.ones(3, bool), margin=10.0, noise_load=load)
+    th = {"m": 500.0, "B_fv": 1e4, "f_c": 80.0, "K_t": 0.0}
+    np.testing.assert_allclose(rest_allowance(b, th), np.hypot(10.0, 2.0 * np.hypot(5.0, 2.0)))
+    np.testing.assert_allclose(rest_allowance(b, {**th, "m": 0.0, "B_fv": 0.0}), 10.0)

@@ -35,6 +35,21 @@ def test_clean_repeats_cover_every_profile_band_and_noise_level_including_stress
     assert all(kind == "clean" and effects == {} for kind, effects, *_ in cases)
 
 
+def test_clean_records_take_the_noise_levels_asked_for():
+    cases = _clean_cases(1, ("pct:0.01", "pct:0.02"))
+    assert Counter(noise for *_, noise, _ in cases) == {"pct:0.01": 20, "pct:0.02": 20}
+
+
+@pytest.mark.parametrize("argv, said", [(["--clean", "1", "--noise", "realistic,loud"], "unknown noise model 'loud'"),
+                                        (["--noise", "pct:0.01"], "--noise goes with --clean"),
+                                        (["--clean", "1", "--noise", "pct:150"], "--noise")])
+def test_a_noise_level_that_is_not_one_or_without_clean_records_is_refused(argv, said, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    assert said in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("argv", [["--clean", "0"], ["--clean", "2", "--ladder", "load_offset"]])
 def test_a_clean_sweep_of_no_records_or_beside_a_ladder_is_refused(argv, capsys):
     with pytest.raises(SystemExit) as e:
