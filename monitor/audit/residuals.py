@@ -9,7 +9,8 @@ The nominal model is the paper's, as four blocks (SI):
   ``L[A1 x3 - A2 x4 - F_L] = m L[a] + (B + f_v) L[v] + f_c L[sign v] + K_t L[x1]``
 * **rest**: rows where the piston stands (nearly) still; friction holds the net force up to
   its static level (f_c for Coulomb friction), so the residual is the net force beyond it
-  (a dead zone), with the force block's parameters and a 2-sigma noise allowance.
+  (a dead zone), with the force block's parameters and a 2-sigma noise allowance of the net
+  force: the pressures' noise and x1's through m a and (B + f_v) v (``rest_allowance``).
 * **chamber** (eqs 28-38, two rows per sample, shared parameters):
 
       A1 v  = -(1/beta_e) L[V1 x3'] + theta L[x5 z1] - C_ip L[x3 - x4] - C_ep L[x3]
