@@ -89,7 +89,7 @@ def _output_error(cand, params, effect, s, cfg, split, fallback, v0):
     """The candidate's free-run variables refined on the training part's free-run error from
     each of its starts; returns the best (params, effect)."""
     starts, to_model = cand.free_run_variables(params, effect)
-    return output_error_fit(starts, to_model, s, cfg, slice(0, split), v0, fallback)
+    return output_error_fit(starts, to_model, s, cfg, slice(0, split), v0, fallback)[:2]
 
 
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,

@@ -156,17 +156,12 @@ def hump_evidence(samples: np.ndarray, config, split: int, p_nom: dict, params: 
         return {**p_nom, "f_c": f_c, "B_fv": b_fv}, {}
 
     x0 = np.log([max(p_nom["f_c"], 1.0), max(p_nom["B_fv"], 1.0)])
-    p_c, _ = output_error_fit([x0], coulomb, part, config, rows, float(v[t0]), p_nom)
-    best = None
-    for k, (p_k, e_k) in enumerate([(params, effect), *others]):
+    p_c, _, _ = output_error_fit([x0], coulomb, part, config, rows, float(v[t0]), p_nom)
+
+    def hump_fit(k, p_k, e_k):  # the candidate's own fit from every friction split, the others from the fitted one
         starts, to_model = StribeckFriction().free_run_variables(p_k, e_k)
-        p_h, e_h = output_error_fit(starts if k == 0 else starts[:1], to_model, part, config, rows, float(v[t0]),
-                                    p_nom)
-        run = free_run(part, config, p_h, Effects(**e_h), v0=float(v[t0]), fallback=p_nom)
-        err = math.inf if run.diverged else mean_nrmse(channel_scores(part[:, 1:], run.measured, rows))
-        if best is None or err < best[0]:
-            best = (err, p_h, e_h)
-    _, p_h, e_h = best
+        return output_error_fit(starts if k == 0 else starts[:1], to_model, part, config, rows, float(v[t0]), p_nom)
+    p_h, e_h, _ = min((hump_fit(k, *pe) for k, pe in enumerate([(params, effect), *others])), key=lambda f: f[2])
     measured, train, test = s[:, 1:], slice(0, split), slice(split, len(s))
     run_c = free_run(s, config, p_c, v0=float(v[0]), fallback=p_nom)
     run_h = free_run(s, config, p_h, Effects(**e_h), v0=float(v[0]), fallback=p_nom)

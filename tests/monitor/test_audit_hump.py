@@ -132,8 +132,9 @@ def test_the_output_error_fit_never_ends_worse_than_its_start(f_c, b_scale):
         return mean_nrmse(channel_scores(part[:, 1:], run.measured, rows))
 
     x0 = np.log([f_c, max(p_nom["B_fv"], 1.0) * b_scale])
-    p, _ = output_error_fit([x0], to_model, part, cfg, rows, 0.0, p_nom, max_runs=15)
+    p, _, fitted = output_error_fit([x0], to_model, part, cfg, rows, 0.0, p_nom, max_runs=15)
     assert err(np.log([p["f_c"], p["B_fv"]])) <= err(x0) + 1e-12
+    assert fitted == pytest.approx(err(np.log([p["f_c"], p["B_fv"]])), rel=1e-12)  # the error it returns is its run's
 
 
 @settings(max_examples=200, deadline=None)
