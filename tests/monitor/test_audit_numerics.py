@@ -32,6 +32,21 @@ def test_orifice_factors_match_the_plant(xv, p1, p2):
     assert (z1[0], z2[0]) == pytest.approx(orifice_z(xv, p1, p2, 12e6), rel=1e-12, abs=1e-9)
 
 
+def test_a_leakage_estimated_below_zero_is_simulated_as_none_not_as_the_fallbacks():
+    """A mass estimated <= 0 takes the fallback's (the nominal model's) mass, but a leakage a
+    little below zero is no leakage: the fallback's C_ep, raised by the effect an extension
+    explains, drained the chambers of a right pair's free run."""
+    from monitor.audit.freerun import plant_from_params
+
+    true = degrade(0.3).identified()
+    fallback = {**true, "C_ip": 5e-11, "C_ep": 3e-14, "m": 90.0}
+    plant, clamped = plant_from_params({**true, "C_ip": -1e-13, "C_ep": -2e-15, "m": -5.0}, fallback)
+    assert plant.C_ip == 0.0 and plant.C_ep == 0.0 and plant.m == 90.0
+    assert {"C_ip", "C_ep", "m"} <= set(clamped)
+    plant, clamped = plant_from_params({**true, "C_ep": 1e-15}, fallback)
+    assert plant.C_ep == 1e-15 and plant.C_ip == true["C_ip"] and clamped == []
+
+
 @settings(max_examples=40, deadline=None)
 @given(a=st.floats(1e-9, 1e-6), dp=st.floats(0.0, 2e7), r=st.floats(0.0, 5e10))
 def test_sagged_flow_solves_its_equation(a, dp, r):
