@@ -153,6 +153,10 @@ class StribeckFriction(Candidate):
     v_s: float = 0.01  # [m/s] default for a fit without a searched value
     V_S_GRID = (0.005, 0.007, 0.01, 0.014, 0.02)  # [m/s] Stribeck velocities searched
     V_S_MAX = 0.04  # [m/s] twice the largest searched: the most a simulated hump may fade over
+    V_S_MIN = 1e-3
+    """[m/s] The least a simulated hump may fade over: below it the hump acts only where the
+    velocity is within its noise (clean stress-noise records refined to 0.0-0.2 mm/s at free-run
+    gains up to 0.07); named humps of the tuning ladders had 3.6 mm/s and more."""
 
     def grid(self, sig):
         # None: the breakaway level on the rest rows alone (a hump so large that the piston
@@ -171,12 +175,16 @@ class StribeckFriction(Candidate):
         return {"stribeck_F_s": max(theta["force"]["F_s"], 0.0), "stribeck_v_s": v_s or self.v_s}
 
     def plausible(self, effect):
-        """A hump that fades over more than ``V_S_MAX`` is not a breakaway hump but a friction
-        level the output-error refinement redistributed: on clean noise-free steps records in
-        the fault band it reached v_s = 67 and 123 mm/s (held-out scores 0.33 and 0.99), while
-        the 123 humps named on the tuning ladders (bases 8100000 and 8200000, noise-free) were
-        simulated at v_s = 1.5-17 mm/s."""
-        return effect.get("stribeck_v_s", 0.0) <= self.V_S_MAX
+        """A breakaway hump: F_s > 0 fading over ``V_S_MIN`` to ``V_S_MAX``. A hump that fades
+        over more than ``V_S_MAX`` is a friction level the output-error refinement
+        redistributed: on clean noise-free steps records in the fault band it reached v_s = 67
+        and 123 mm/s (held-out scores 0.33 and 0.99), while the 123 humps named on the tuning
+        ladders (bases 8100000 and 8200000, noise-free) were simulated at v_s = 1.5-17 mm/s. A
+        hump of 0 N is none: where the rest rows' static level took what a load offset held (a
+        pair of 4 % air and an 800 N offset on paper-var at fault-grade health) the refinement
+        walked F_s and v_s to zero, and a Stribeck friction of 0 N was named."""
+        return (effect.get("stribeck_F_s", 0.0) > 0.0
+                and self.V_S_MIN <= effect.get("stribeck_v_s", 0.0) <= self.V_S_MAX)
 
     def free_run_variables(self, params: dict, effect: dict):
         """The friction for an output-error refinement on the training part: f_c, B + f_v,

@@ -7,8 +7,8 @@ Rules (scores as in ``monitor.audit.audit``, threshold ``opt.threshold``):
    held-out part no worse than ``GAIN_FLOOR`` allows (a model that cannot simulate the record
    explains nothing: clean stress-noise records were named for a residual variance that only
    the extension's larger predicted noise share had lowered), and the simulated extension is
-   still the effect its candidate stands for (``Candidate.plausible``: a Stribeck hump fading
-   over at most 40 mm/s). When the
+   still the effect its candidate stands for (``Candidate.plausible``: a Stribeck hump of more
+   than 0 N fading over 1-40 mm/s). When the
    nominal identification is impossible (a non-positive 1/beta_e, C_d W/sqrt(rho) or K_sv: the
    paper's equations cannot hold), a candidate must also restore a plausible identification and
    simulate the held-out part better than the nominal model (free-run gain > 0): equation error
@@ -239,9 +239,13 @@ def _reach_words(f_reach: float) -> str:
 def _passed_over_words(c) -> str:
     """Why a candidate that scored above its threshold was not named."""
     head = f"{c.name} scores {c.score:.2f}"
-    if not c.plausible and "stribeck_v_s" in c.effect:
+    if not c.plausible and c.effect.get("stribeck_v_s", 0.0) > StribeckFriction.V_S_MAX:
         return (f"{head}, but its simulated hump fades over {1e3 * c.effect['stribeck_v_s']:.0f} mm/s: a friction "
                 f"level, not a breakaway hump (at most {1e3 * StribeckFriction.V_S_MAX:.0f} mm/s)")
+    if not c.plausible and "stribeck_v_s" in c.effect:
+        return (f"{head}, but its simulated hump ({c.effect['stribeck_F_s']:.0f} N fading over "
+                f"{1e3 * c.effect['stribeck_v_s']:.1f} mm/s) is no breakaway hump (F_s > 0, v_s of at least "
+                f"{1e3 * StribeckFriction.V_S_MIN:g} mm/s)")
     if not c.plausible:
         return f"{head}, but its simulated extension is not the effect it stands for"
     if c.gain == -math.inf:

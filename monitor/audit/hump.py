@@ -53,10 +53,8 @@ HUMP_TRAIN = 0.01
 """The same gain on the training part [-] that the hump must also reach: a gain on one part only
 is noise (a clean noise-free record reached 0.011 held out with 0.001 on the training part)."""
 
-V_S_MIN = 1e-3
-"""The slowest Stribeck velocity [m/s] a hump is simulated with: below it the hump acts only
-where the velocity is within its noise (clean stress-noise records refined to 0.0-0.2 mm/s at
-gains up to 0.07); named humps of the tuning ladders had 3.6 mm/s and more."""
+V_S_MIN = StribeckFriction.V_S_MIN
+"""The slowest Stribeck velocity [m/s] a hump is simulated with (``StribeckFriction.V_S_MIN``)."""
 
 V_NOISE_MAX = V_S_MIN
 """The noise rms of the force equation's filtered velocity [m/s] (``Signals.v_noise``) above
@@ -107,9 +105,8 @@ class HumpEvidence:
 
     @property
     def plausible(self) -> bool:
-        """Whether the refined hump is a breakaway hump: F_s > 0, v_s in [V_S_MIN, V_S_MAX]."""
-        return (self.effect["stribeck_F_s"] > 0.0
-                and V_S_MIN <= self.effect["stribeck_v_s"] <= StribeckFriction.V_S_MAX)
+        """Whether the refined hump is a breakaway hump (``StribeckFriction.plausible``)."""
+        return StribeckFriction().plausible(self.effect)
 
     @property
     def named(self) -> bool:

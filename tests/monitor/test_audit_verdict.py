@@ -149,6 +149,27 @@ def test_a_load_offset_at_fault_grade_health_is_named_though_the_mass_is_not_ide
     assert res.causes == ("load_offset",), (res.causes, res.note)
 
 
+def test_a_breakaway_hump_is_more_than_0_n_fading_over_1_to_40_mm_s():
+    from monitor.audit.candidates import StribeckFriction
+
+    hump = StribeckFriction()
+    assert hump.plausible({"stribeck_F_s": 80.0, "stribeck_v_s": 0.01})
+    for f_s, v_s in ((0.0, 0.01), (80.0, 1e-13), (80.0, 0.05), (-5.0, 0.01)):
+        assert not hump.plausible({"stribeck_F_s": f_s, "stribeck_v_s": v_s}), (f_s, v_s)
+
+
+def test_a_stribeck_friction_of_0_n_is_not_named():
+    # 4 % air and an 800 N load offset on paper-var at fault-grade health: the rest rows' static
+    # level takes what the offset holds (score 11.9), and the output-error refinement walks the
+    # hump to 0 N over 0 mm/s; it was named beside the air
+    s, cfg = _record("pair", {"entrained_air": 0.04, "load_offset": 800.0}, "paper-var:period=7.253", 0.927,
+                     "realistic", 12100229)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    hump = next(c for c in res.candidates if c.name == "stribeck_friction")
+    assert hump.score > 0.3 and hump.effect["stribeck_F_s"] < 1.0 and not hump.plausible, (hump.score, hump.effect)
+    assert "stribeck_friction" not in res.causes and res.cause != "stribeck_friction", (res.causes, res.note)
+
+
 def test_a_stribeck_hump_simulated_to_fade_over_a_sliding_speed_is_not_named():
     # a clean noise-free steps record in the fault band: the piston creeps at 1.6 mm/s between
     # sticks, Stribeck friction scores 0.99, and its output-error refinement spreads the "hump"
