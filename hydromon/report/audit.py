@@ -31,7 +31,8 @@ def _num(x):
 def to_json(result) -> dict:
     """The ``audit --json`` document: cause, candidates, gain, params_nominal,
     params_extended (the named cause's model, or the nominal one; with two causes, both
-    extensions as fitted together), plus confident/note."""
+    extensions as fitted together), plus confident/note, and the candidates that could not be
+    fitted on the record (``unfitted``: name -> why)."""
     best = result.best
     ext = dict(best.params) if best else dict(result.params_nominal)
     if best:
@@ -53,6 +54,7 @@ def to_json(result) -> dict:
         # cause was named, or Stribeck friction was excluded), "beyond" past the largest tried
         "stribeck_reach_N": (None if result.stribeck_reach is None else
                              "beyond" if math.isinf(result.stribeck_reach) else result.stribeck_reach),
+        "unfitted": result.unfitted,
     })
 
 
@@ -66,6 +68,8 @@ def summary(result) -> str:
     lines.append(f"{'candidate':22s} {'score':>9s} {'free-run gain':>14s}")
     for c in result.candidates:
         lines.append(f"{c.name:22s} {c.score:9.1f} {c.gain:14.2f}")
+    for name, why in result.unfitted.items():
+        lines.append(f"{name:22s} not fitted: {why}")
     g = result.gain
     lines.append("held-out free-run NRMSE (nominal -> extended): " + ", ".join(
         f"{ch} {g[ch]['nrmse_nominal']:.3f} -> {g[ch]['nrmse_extended']:.3f}"
@@ -162,6 +166,7 @@ def write_report(result, directory, what: str = "") -> Path:
                        _effect_text(c.effect),
                        c.equation.replace("|", "\\|"))
                       for c in result.candidates], ["name", "score", "gain", "fitted", "equation"]), ""]
+    md += [f"Not fitted: {name}: {why}." for name, why in result.unfitted.items()] + ([""] if result.unfitted else [])
     md += ["## Free run on held-out data", "",
            _md_table([(ch, f"{fr[ch]['nrmse_nominal']:.3f}", f"{fr[ch]['nrmse_extended']:.3f}",
                        f"{fr[ch]['fit_nominal']:.1f}", f"{fr[ch]['fit_extended']:.1f}")

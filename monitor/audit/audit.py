@@ -92,6 +92,17 @@ def _output_error(cand, params, effect, s, cfg, split, fallback, v0):
     return output_error_fit(starts, to_model, s, cfg, slice(0, split), v0, fallback)[:2]
 
 
+def _unfit_words(e: ValueError) -> str:
+    """Why a candidate could not be fitted, for a person."""
+    if isinstance(e, np.linalg.LinAlgError):
+        # a column of the extension that is a combination of the model's on the rows at hand:
+        # a constant force where every sliding row of the force equation runs one way is
+        # Coulomb friction there
+        return ("its extended equations are singular on this record's rows: what it adds is a combination of "
+                "the nominal model's terms there")
+    return str(e)
+
+
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
           library=LIBRARY, progress=None) -> AuditResult:
     """Audit one record.
@@ -160,16 +171,17 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
 
     if progress is not None:
         progress(0, len(library), "nominal")
-    results, fits = [], {}
+    results, fits, unfitted = [], {}, {}
     for done, cand in enumerate(library, 1):
         if progress is not None and done > 1:
             progress(done - 1, len(library), library[done - 2].name)
-        best = None
+        best, why = None, ""
         grid = cand.grid(sig)
         for value in grid:
             try:
                 trial = fit_at(cand, value)
-            except ValueError:  # e.g. a spool stop so low that no valve row is free of it
+            except ValueError as e:  # e.g. a spool stop so low that no valve row is free of it
+                why = _unfit_words(e)
                 continue
             if best is None or trial[0] > best[0]:
                 best = trial
@@ -186,6 +198,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
                         best = trial
                 step **= 0.5
         if best is None:
+            unfitted[cand.name] = why
             continue
         (physical, _), value, fit = best
         tr, te = _mse_split(fit, split, floors)
@@ -283,7 +296,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     return AuditResult(
         cause=verdict.cause, causes=verdict.causes, confident=verdict.confident, note=verdict.note,
         words=verdict.words, structure=verdict.structure, obeys=verdict.obeys, effect=verdict.effect,
-        stribeck_reach=verdict.stribeck_reach,
+        stribeck_reach=verdict.stribeck_reach, unfitted=unfitted,
         candidates=results, params_nominal=p_nom,
         freerun_nominal=fr_nom or {}, residual_var_nominal=nom_te, split=split,
         t=np.arange(sig.n) * cfg.h, measured=measured, simulated_nominal=sim_nom,

@@ -152,6 +152,9 @@ class AuditResult:
     """When nothing is named and Stribeck friction cannot be excluded: the smallest hump [N above
     Coulomb, v_s = 10 mm/s] this record would have named (``monitor.audit.reach``), ``inf`` when
     none up to 2560 N would; None when not asked."""
+    unfitted: dict = field(default_factory=dict)
+    """Candidates of the library that no searched value could be fitted for on this record, by
+    name: why (they are not in ``candidates``, so not ranked)."""
 
     @property
     def best(self) -> CandidateResult | None:

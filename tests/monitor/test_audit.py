@@ -80,6 +80,7 @@ def test_clean_record_gives_none(seed):
     _, run = hidden_case(seed, "none")
     res = audit(run.samples, run.config)
     assert res.cause == "none", [(c.name, round(c.score, 1)) for c in res.candidates]
+    assert res.unfitted == {} and len(res.candidates) == len(LIBRARY)
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from hydromon.report.audit import to_json
+from hydromon.report.audit import summary, to_json, write_report
 from hydromon.tools.audit_sweep import CLAIMS, _record
 from monitor.audit import AuditOptions, audit
 from plant_sim.params import EFFECT_NAMES
@@ -158,7 +158,7 @@ def test_a_breakaway_hump_is_more_than_0_n_fading_over_1_to_40_mm_s():
         assert not hump.plausible({"stribeck_F_s": f_s, "stribeck_v_s": v_s}), (f_s, v_s)
 
 
-def test_a_stribeck_friction_of_0_n_is_not_named():
+def test_a_stribeck_friction_of_0_n_is_not_named(tmp_path):
     # 4 % air and an 800 N load offset on paper-var at fault-grade health: the rest rows' static
     # level takes what the offset holds (score 11.9), and the output-error refinement walks the
     # hump to 0 N over 0 mm/s; it was named beside the air
@@ -168,6 +168,11 @@ def test_a_stribeck_friction_of_0_n_is_not_named():
     hump = next(c for c in res.candidates if c.name == "stribeck_friction")
     assert hump.score > 0.3 and hump.effect["stribeck_F_s"] < 1.0 and not hump.plausible, (hump.score, hump.effect)
     assert "stribeck_friction" not in res.causes and res.cause != "stribeck_friction", (res.causes, res.note)
+    # every sliding row of the force equation runs one way: a constant force is Coulomb friction
+    # there, and the load offset cannot be fitted; said, not dropped in silence
+    assert "load_offset" not in {c.name for c in res.candidates} and "singular" in res.unfitted["load_offset"]
+    assert to_json(res)["unfitted"] == res.unfitted and "load_offset" in summary(res)
+    assert "Not fitted: load_offset: its extended equations are singular" in write_report(res, tmp_path).read_text()
 
 
 def test_a_stribeck_hump_simulated_to_fade_over_a_sliding_speed_is_not_named():
