@@ -6,8 +6,8 @@ from collections import Counter
 
 import pytest
 
-from hydromon.tools.audit_sweep import (BANDS, CLAIMS, CLEAN_SEED, LADDER, LADDER_SEED, NOISES, PROFILES,
-                                        _cases, _clean_cases, _ladder_cases, main)
+from hydromon.tools.audit_sweep import (BANDS, CLAIMS, CLEAN_SEED, LADDER, LADDER_SEED, NOISES, PAIR_SEED, PAIRS,
+                                        PROFILES, _cases, _clean_cases, _ladder_cases, _pair_cases, main)
 
 
 @pytest.mark.parametrize("name", sorted(CLAIMS))
@@ -25,6 +25,41 @@ def test_a_ladder_puts_every_multiple_of_the_claim_on_every_profile_band_and_noi
 def test_ladder_and_clean_seeds_do_not_meet_each_other_or_the_main_sweeps_at_the_same_base():
     assert LADDER_SEED > len(_cases())
     assert CLEAN_SEED > LADDER_SEED + max(len(_ladder_cases(n)) for n in CLAIMS)
+
+
+def test_pair_repeats_cover_every_pair_profile_and_band_at_realistic_noise():
+    cases = _pair_cases(2)
+    cells = Counter((tuple(sorted(effects.items())), profile, sev) for _, effects, profile, sev, _, _ in cases)
+    assert set(cells) == {(tuple(sorted({a: va, b: vb}.items())), p, s) for a, va, b, vb in PAIRS for p in PROFILES
+                          for s in BANDS}
+    assert set(cells.values()) == {2}
+    assert all(kind == "pair" and noise == "realistic" for kind, _, _, _, noise, _ in cases)
+    assert PAIR_SEED > CLEAN_SEED + len(_clean_cases(5))  # --clean 5 and --pairs N never share a seed
+
+
+@pytest.mark.parametrize("argv", [["--pairs", "0"], ["--pairs", "1", "--clean", "1"],
+                                  ["--pairs", "1", "--ladder", "load_offset"]])
+def test_a_pair_sweep_of_no_records_or_beside_another_sweep_is_refused(argv, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    assert "--pairs takes N >= 1" in capsys.readouterr().err
+
+
+def test_a_pair_sweep_counts_both_effects_named_per_profile_and_band(monkeypatch, capsys):
+    from hydromon.tools import audit_sweep
+
+    def audit_one(args):  # right when the record's band is not the fault band: 48 of 60
+        i, case, seed, fixed, duration = args
+        truth = sorted(case[1])
+        return i, (truth if case[3] < 0.8 else ["none"]), truth, "", case[2]
+    monkeypatch.setattr(audit_sweep, "_audit_one", audit_one)
+    main(["--pairs", "1", "--seed-base", "5"])
+    out = capsys.readouterr().out
+    assert "two effects (both named): 48/60 right" in out
+    assert "| entrained_air 0.04 + load_offset 800 | 4/5 | 4/5 | 4/5 | 4/5 | 16/20 |" in out  # by profile
+    assert "| entrained_air 0.04 + load_offset 800 | 4/4 | 4/4 | 4/4 | 4/4 | 0/4 | 16/20 |" in out  # by band
+    assert "base 5 (seeds base + 30000 + index)" in out
 
 
 def test_clean_repeats_cover_every_profile_band_and_noise_level_including_stress():

@@ -1,0 +1,109 @@
+"""The audit sweep's tables (``hydromon.tools.audit_sweep``), printed as Markdown for
+``docs/audit.md``: per effect and step, per ladder rung, per clean noise level, per pair."""
+
+from __future__ import annotations
+
+from .audit_cases import BANDS, CLAIMS, CLEAN_NOISES, CLEAN_SEED, LADDER, LADDER_SEED, NOISES, PAIR_SEED, PAIRS, \
+    PROFILES, STEPS
+
+def _profile_cells(results, right, in_row) -> str:
+    """A table row's cells: records named right of those ``in_row(i, profile)`` holds, per profile, then all."""
+    cells, tot, n = [], 0, 0
+    for p in PROFILES:
+        idx = [i for i in results if in_row(i, p)]
+        k = sum(right(i) for i in idx)
+        cells.append(f"{k}/{len(idx)}" if idx else "-")
+        tot, n = tot + k, n + len(idx)
+    return " | ".join(cells) + f" | {tot}/{n} |"
+
+
+def _print_listed(title, indices, cases, results, describe):
+    """The records of ``indices`` and what each was named, ``describe(case)`` saying which record."""
+    if indices:
+        print(f"\n{title} (index: record -> named):")
+        for i in indices:
+            print(f"- {i}: {describe(*cases[i])} -> {', '.join(results[i][0])}  ({results[i][3]})")
+
+
+def _print_tables(cases, results, seeds, base, wall, duration):
+    right = lambda i: results[i][0] == results[i][1]  # noqa: E731
+    print(f"Audit sweep, seeds '{seeds}' (base {base}), {len(results)} records of {duration:g} s, "
+          f"{wall:.0f} s wall.\n")
+    print("One effect, named right per profile (of the two noise levels' records at that step):\n")
+    print("| effect | unit | claimed limit none / realistic | step | " + " | ".join(PROFILES) + " | all |")
+    print("|---|---|---|---|" + "---|" * (len(PROFILES) + 1))
+    for name, (unit, lim, large, _) in CLAIMS.items():
+        for step in STEPS:
+            row = _profile_cells(results, right, lambda i, p: cases[i][0] == "one" and name in cases[i][1]
+                                 and cases[i][2] == p and cases[i][5] == step)
+            print(f"| {name} | {unit} | {lim['none']:g} / {lim['realistic']:g} | {step} | " + row)
+    for kind, label in (("one", "one effect, all"), ("clean", "clean (named 'none')"),
+                        ("pair", "two effects (both named)"), ("outside", "outside the library ('unexplained')")):
+        idx = [i for i in results if cases[i][0] == kind]
+        if not idx:
+            continue
+        by_noise = {}
+        for i in idx:
+            by_noise.setdefault(cases[i][4], []).append(right(i))
+        parts = ", ".join(f"{nz} {sum(v)}/{len(v)}" for nz, v in by_noise.items())
+        print(f"\n{label}: {sum(right(i) for i in idx)}/{len(idx)} right ({parts})")
+    clean_named = [i for i in results if cases[i][0] == "clean" and results[i][0] != ["none"]]
+    print(f"clean records named as an effect or unexplained: {len(clean_named)}")
+    _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
+                  lambda kind, effects, profile, severity, noise, step:
+                  f"{kind} {effects} {profile} severity {severity} {noise} {step}")
+
+
+def _print_ladder(name, cases, results, base, wall, duration):
+    unit = CLAIMS[name][0]
+    print(f"Ladder of {name}, base {base} (seeds base + {LADDER_SEED} + index), {len(results)} records of "
+          f"{duration:g} s, {wall:.0f} s wall. Each cell: records named right of the five bands' records.\n")
+    print(f"| noise | {name} [{unit}] | multiple of the claimed limit | " + " | ".join(PROFILES) + " | all |")
+    print("|---|---|---|" + "---|" * (len(PROFILES) + 1))
+    right = lambda i: results[i][0] == results[i][1]  # noqa: E731
+    for noise in NOISES:
+        for f in LADDER:
+            row = _profile_cells(results, right, lambda i, p: cases[i][4] == noise
+                                 and cases[i][5] == f"{f}x limit" and cases[i][2] == p)
+            print(f"| {noise} | {CLAIMS[name][1][noise] * f:g} | {f} | " + row)
+    _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
+                  lambda kind, effects, profile, severity, noise, step:
+                  f"{effects} {profile} severity {severity} {noise}")
+
+
+def _print_clean(cases, results, base, wall, duration, noises=CLEAN_NOISES):
+    print(f"Clean records, base {base} (seeds base + {CLEAN_SEED} + index), {len(results)} records of "
+          f"{duration:g} s, {wall:.0f} s wall.\n")
+    print("| noise | named none | named an effect | unexplained | refused |")
+    print("|---|---|---|---|---|")
+    for noise in noises:
+        got = [results[i][0] for i in results if cases[i][4] == noise]
+        named = sum(g not in (["none"], ["unexplained"], ["refused"]) for g in got)
+        print(f"| {noise} | {got.count(['none'])}/{len(got)} | {named} | {got.count(['unexplained'])} | "
+              f"{got.count(['refused'])} |")
+    _print_listed("Not none", [i for i in sorted(results) if results[i][0] != ["none"]], cases, results,
+                  lambda kind, effects, profile, severity, noise, step:
+                  f"{profile} severity {severity} {noise} {step}")
+
+
+def _print_pairs(cases, results, base, wall, duration):
+    print(f"Two-effect records, base {base} (seeds base + {PAIR_SEED} + index), {len(results)} records of "
+          f"{duration:g} s at realistic noise, {wall:.0f} s wall. Each cell: records with both effects named.\n")
+    right = lambda i: results[i][0] == results[i][1]  # noqa: E731
+    pairs = [{a: va, b: vb} for a, va, b, vb in PAIRS]
+    for by, values, at in (("profile", PROFILES, 2), ("health band (severity at its centre)", BANDS, 3)):
+        print(f"By {by}:\n")
+        print("| pair | " + " | ".join(str(v) for v in values) + " | all |")
+        print("|---|" + "---|" * (len(values) + 1))
+        for pair in pairs:
+            cells, tot, n = [], 0, 0
+            for v in values:
+                idx = [i for i in results if cases[i][1] == pair and cases[i][at] == v]
+                k = sum(right(i) for i in idx)
+                cells.append(f"{k}/{len(idx)}" if idx else "-")
+                tot, n = tot + k, n + len(idx)
+            print(f"| {' + '.join(f'{k} {v:g}' for k, v in pair.items())} | " + " | ".join(cells) + f" | {tot}/{n} |")
+        print()
+    print(f"two effects (both named): {sum(right(i) for i in results)}/{len(results)} right")
+    _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
+                  lambda kind, effects, profile, severity, noise, step: f"{effects} {profile} severity {severity}")
