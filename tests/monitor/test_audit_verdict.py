@@ -185,6 +185,24 @@ def test_a_stribeck_friction_of_0_n_is_not_named(tmp_path):
     assert "Not fitted: load_offset: its extended equations are singular" in write_report(res, tmp_path).read_text()
 
 
+@pytest.mark.parametrize("profile, severity, seed, named", [
+    ("steps:low=1.419,high=2.256,period=2.747", 0.368, 11710151, "none"),
+    ("steps:low=1.507,high=2.546,period=2.563", 0.565, 11710152, "supply_pressure_sag"),
+])
+def test_a_negative_air_fraction_is_no_air(profile, severity, seed, named):
+    # a 3.2e10 Pa/(m^3/s) supply sag on steps at realistic noise (tuning ladder): the chamber
+    # equation fitted a negative air fraction (oil stiffer at low pressure), which scored 0.40
+    # and named "entrained air, 0 %" on the first record, and tied with the sag on the second
+    from monitor.audit.candidates import EntrainedAir
+
+    assert not EntrainedAir().admissible({"chamber": {"air_fraction": -1e-4}})
+    s, cfg = _record("one", {"supply_pressure_sag": 3.2e10}, profile, severity, "realistic", seed)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    air = next(c for c in res.candidates if c.name == "entrained_air")
+    assert air.score <= 0.0 and air.effect["air_fraction"] == 0.0, (air.score, air.effect)
+    assert res.cause == named and res.confident, (res.cause, res.note)
+
+
 def test_a_stribeck_hump_simulated_to_fade_over_a_sliding_speed_is_not_named():
     # a clean noise-free steps record in the fault band: the piston creeps at 1.6 mm/s between
     # sticks, Stribeck friction scores 0.99, and its output-error refinement spreads the "hump"
