@@ -3,7 +3,7 @@
 ``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]
 [--fixed] [--duration S] [--only NAME | --ladder NAME | --clean N [--noise LIST] | --pairs N]`` prints the tables of
 ``docs/audit.md``. Every record is 20 s (``--duration``) at 100 Hz from ``plant_sim``; its seed is
-``BASE[seeds] + its index`` in the fixed list below (the ``tune`` seeds were used to set the
+``BASE[seeds] + its index`` in the fixed list (``hydromon.tools.audit_cases``; the ``tune`` seeds were used to set the
 audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen). The seed
 draws the record's noise and also its own input and health (``_drawn``): the profile's parameters
 around their defaults (the sine's offset, amplitude and frequency; the variable input's period; the
@@ -15,7 +15,7 @@ defaults at its band's centre.
 * one effect: each of the seven effects on each of the four profiles (the paper's sine
   ``paper-id``, its variable-condition input ``paper-var``, ``steps``, ``multisine``) at
   noise ``none`` and ``realistic``, at the claimed detection limit (``CLAIMS``), four times it,
-  and a magnitude large enough to spoil the nominal fit (``LARGE``); the health band (severity
+  and a magnitude large enough to spoil the nominal fit (``CLAIMS``' third entry); the health band (severity
   0.1, 0.3, 0.5, 0.7, 0.9) cycles with the record's index;
 * clean: each profile x band x noise ``none``, ``realistic``, ``stress``;
 * two effects at once (``PAIRS``), realistic noise, each profile;
