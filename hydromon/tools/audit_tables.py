@@ -6,10 +6,11 @@ from __future__ import annotations
 from .audit_cases import BANDS, CLAIMS, CLEAN_NOISES, CLEAN_SEED, LADDER, LADDER_SEED, NOISES, PAIR_SEED, PAIRS, \
     PROFILES, STEPS
 
-def _profile_cells(results, right, in_row) -> str:
-    """A table row's cells: records named right of those ``in_row(i, profile)`` holds, per profile, then all."""
+def _profile_cells(results, right, in_row, columns=PROFILES) -> str:
+    """A table row's cells: records named right of those ``in_row(i, column)`` holds, per column
+    (a profile unless ``columns`` says otherwise), then all."""
     cells, tot, n = [], 0, 0
-    for p in PROFILES:
+    for p in columns:
         idx = [i for i in results if in_row(i, p)]
         k = sum(right(i) for i in idx)
         cells.append(f"{k}/{len(idx)}" if idx else "-")
@@ -96,13 +97,8 @@ def _print_pairs(cases, results, base, wall, duration):
         print("| pair | " + " | ".join(str(v) for v in values) + " | all |")
         print("|---|" + "---|" * (len(values) + 1))
         for pair in pairs:
-            cells, tot, n = [], 0, 0
-            for v in values:
-                idx = [i for i in results if cases[i][1] == pair and cases[i][at] == v]
-                k = sum(right(i) for i in idx)
-                cells.append(f"{k}/{len(idx)}" if idx else "-")
-                tot, n = tot + k, n + len(idx)
-            print(f"| {' + '.join(f'{k} {v:g}' for k, v in pair.items())} | " + " | ".join(cells) + f" | {tot}/{n} |")
+            row = _profile_cells(results, right, lambda i, v: cases[i][1] == pair and cases[i][at] == v, values)
+            print(f"| {' + '.join(f'{k} {v:g}' for k, v in pair.items())} | " + row)
         print()
     print(f"two effects (both named): {sum(right(i) for i in results)}/{len(results)} right")
     _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
