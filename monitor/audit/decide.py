@@ -56,6 +56,7 @@ import numpy as np
 from .candidates import StribeckFriction
 from .hump import HUMP_GAIN, HUMP_TRAIN, V_NOISE_MAX, V_S_MIN, HumpEvidence
 from .reach import REACH_GRID, REACH_V_S
+from .shadow import offset_shadow
 from .verdict import EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape
 
 __all__ = ["Verdict", "decide", "STRUCTURE"]
@@ -209,12 +210,13 @@ def _hump_words(ev) -> str:
     return said
 
 
-def _hump_verdict(ev, stribeck, need: float, p_nom: dict) -> Verdict:
-    """Stribeck friction named from its free run (rule 5)."""
+def _hump_verdict(ev, stribeck, need: float, p_nom: dict, shadow: dict) -> Verdict:
+    """Stribeck friction named from its free run (rule 5); ``shadow`` the words on a load offset
+    passed over as the hump's shadow (``monitor.audit.shadow``)."""
     eq = (f"on the equations the hump is not told from Coulomb plus viscous friction (held-out score "
           f"{stribeck.score:.2f} <= {need:g})" if stribeck.score <= need
           else f"on the equations the hump was passed over ({_passed_over_words(stribeck)})")
-    note = f"named from its free run: {eq}, but {_hump_words(ev)}"
+    note = f"named from its free run: {eq}, but {_hump_words(ev)}" + "".join(f"; {w}" for w in shadow.values())
     confident = ev.gain > 2 * HUMP_GAIN
     shift = param_shift_words(p_nom, ev.params)
     gain = "" if not np.isfinite(ev.gain_nominal) else (
@@ -278,6 +280,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
                 and c.plausible]
     else:
         earn = [c for c in results if c.score > need[c.name] and c.gain > GAIN_FLOOR and c.plausible]
+    shadow = offset_shadow(earn, results, pair)
+    earn = [c for c in earn if c.name not in shadow]
     if not earn:
         struct = _structure(nominal, sig, split)
         if impossible:
@@ -299,10 +303,11 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         stribeck = next((c for c in results if c.name == "stribeck_friction"), None)
         ev = hump(stribeck) if hump is not None and stribeck is not None and sig.v_noise <= V_NOISE_MAX else None
         if ev is not None and ev.named:
-            return _hump_verdict(ev, stribeck, need[stribeck.name], p_nom)
+            return _hump_verdict(ev, stribeck, need[stribeck.name], p_nom, shadow)
         passed = [c for c in results if c.score > need[c.name]]
         if passed:
-            note = "no extension earns its place: " + "; ".join(_passed_over_words(c) for c in passed)
+            note = "no extension earns its place: " + "; ".join(shadow.get(c.name) or _passed_over_words(c)
+                                                                 for c in passed)
         else:
             best = results[0]
             note = f"no extension earns its place (best {best.name} scores {best.score:.2f} <= {need[best.name]:g})"
@@ -330,13 +335,13 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
                        stribeck_reach=f_reach)
 
     top = earn[0]
-    causes, confident, note = [top.name], True, ""
+    causes, confident, note = [top.name], True, "; ".join(shadow.values())
     final, effect = None, dict(top.effect)
     # a second effect: the two fitted together must beat the first alone on held-out data
     best2 = None
     for c in results:  # alone, a second effect can score nothing: the first distorts the fit
         # (a 3-sample delay hides 4 % air: 0.003 alone, 3.8 as a pair)
-        if c is top or not c.plausible or (impossible and c not in earn):
+        if c is top or not c.plausible or (impossible and c not in earn) or c.name in shadow:
             continue
         got = pair(top.name, c.name)
         if got is not None and got[0] > SECOND * need[c.name] and (best2 is None or got[0] > best2[0]) \
@@ -348,8 +353,9 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
     close = [c.name for c in earn[1:] if c.name not in causes and c.score > opt.margin * top.score]
     if close:
         confident = False
-        note = (f"cannot tell {top.name} from {', '.join(close)} (held-out scores "
-                f"{', '.join(f'{c.score:.2f}' for c in earn[:1 + len(close)])})")
+        note = (note + "; " if note else "") + (
+            f"cannot tell {top.name} from {', '.join(close)} (held-out scores "
+            f"{', '.join(f'{c.score:.2f}' for c in earn[:1 + len(close)])})")
         if not top.gain > 0:
             # a tie the free run does not break either: on clean noise-free records in the fault
             # band a supply sag of about 1.3e8 Pa/(m^3/s) and entrained air tied at 0.17-0.21,
