@@ -186,13 +186,14 @@ def test_a_stribeck_friction_of_0_n_is_not_named(tmp_path):
 
 
 @pytest.mark.parametrize("profile, severity, seed, named", [
-    ("steps:low=1.419,high=2.256,period=2.747", 0.368, 11710151, "none"),
+    ("steps:low=1.419,high=2.256,period=2.747", 0.368, 11710151, "supply_pressure_sag"),
     ("steps:low=1.507,high=2.546,period=2.563", 0.565, 11710152, "supply_pressure_sag"),
 ])
 def test_a_negative_air_fraction_is_no_air(profile, severity, seed, named):
     # a 3.2e10 Pa/(m^3/s) supply sag on steps at realistic noise (tuning ladder): the chamber
     # equation fitted a negative air fraction (oil stiffer at low pressure), which scored 0.40
-    # and named "entrained air, 0 %" on the first record, and tied with the sag on the second
+    # and named "entrained air, 0 %" on the first record, and tied with the sag on the second;
+    # the sag itself is named on both since its search reaches beyond 2e10
     from monitor.audit.candidates import EntrainedAir
 
     assert not EntrainedAir().admissible({"chamber": {"air_fraction": -1e-4}})
