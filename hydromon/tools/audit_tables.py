@@ -3,8 +3,16 @@
 
 from __future__ import annotations
 
+from functools import partial
+
 from .audit_cases import BANDS, CLAIMS, CLEAN_NOISES, CLEAN_SEED, LADDER, LADDER_SEED, NOISES, PAIR_SEED, PAIRS, \
     PROFILES, STEPS
+
+
+def _right(results, i) -> bool:
+    """Whether record ``i`` was named what it holds."""
+    return results[i][0] == results[i][1]
+
 
 def _profile_cells(results, right, in_row, columns=PROFILES) -> str:
     """A table row's cells: records named right of those ``in_row(i, column)`` holds, per column
@@ -26,8 +34,13 @@ def _print_listed(title, indices, cases, results, describe):
             print(f"- {i}: {describe(*cases[i])} -> {', '.join(results[i][0])}  ({results[i][3]})")
 
 
+def _print_wrong(cases, results, describe):
+    """Every record named other than what it holds (``_print_listed``)."""
+    _print_listed("Wrong answers", [i for i in sorted(results) if not _right(results, i)], cases, results, describe)
+
+
 def _print_tables(cases, results, seeds, base, wall, duration):
-    right = lambda i: results[i][0] == results[i][1]  # noqa: E731
+    right = partial(_right, results)
     print(f"Audit sweep, seeds '{seeds}' (base {base}), {len(results)} records of {duration:g} s, "
           f"{wall:.0f} s wall.\n")
     print("One effect, named right per profile (of the two noise levels' records at that step):\n")
@@ -50,9 +63,8 @@ def _print_tables(cases, results, seeds, base, wall, duration):
         print(f"\n{label}: {sum(right(i) for i in idx)}/{len(idx)} right ({parts})")
     clean_named = [i for i in results if cases[i][0] == "clean" and results[i][0] != ["none"]]
     print(f"clean records named as an effect or unexplained: {len(clean_named)}")
-    _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
-                  lambda kind, effects, profile, severity, noise, step:
-                  f"{kind} {effects} {profile} severity {severity} {noise} {step}")
+    _print_wrong(cases, results, lambda kind, effects, profile, severity, noise, step:
+                 f"{kind} {effects} {profile} severity {severity} {noise} {step}")
 
 
 def _print_ladder(name, cases, results, base, wall, duration):
@@ -61,15 +73,14 @@ def _print_ladder(name, cases, results, base, wall, duration):
           f"{duration:g} s, {wall:.0f} s wall. Each cell: records named right of the five bands' records.\n")
     print(f"| noise | {name} [{unit}] | multiple of the claimed limit | " + " | ".join(PROFILES) + " | all |")
     print("|---|---|---|" + "---|" * (len(PROFILES) + 1))
-    right = lambda i: results[i][0] == results[i][1]  # noqa: E731
+    right = partial(_right, results)
     for noise in NOISES:
         for f in LADDER:
             row = _profile_cells(results, right, lambda i, p: cases[i][4] == noise
                                  and cases[i][5] == f"{f}x limit" and cases[i][2] == p)
             print(f"| {noise} | {CLAIMS[name][1][noise] * f:g} | {f} | " + row)
-    _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
-                  lambda kind, effects, profile, severity, noise, step:
-                  f"{effects} {profile} severity {severity} {noise}")
+    _print_wrong(cases, results, lambda kind, effects, profile, severity, noise, step:
+                 f"{effects} {profile} severity {severity} {noise}")
 
 
 def _print_clean(cases, results, base, wall, duration, noises=CLEAN_NOISES):
@@ -90,7 +101,7 @@ def _print_clean(cases, results, base, wall, duration, noises=CLEAN_NOISES):
 def _print_pairs(cases, results, base, wall, duration):
     print(f"Two-effect records, base {base} (seeds base + {PAIR_SEED} + index), {len(results)} records of "
           f"{duration:g} s at realistic noise, {wall:.0f} s wall. Each cell: records with both effects named.\n")
-    right = lambda i: results[i][0] == results[i][1]  # noqa: E731
+    right = partial(_right, results)
     pairs = [{a: va, b: vb} for a, va, b, vb in PAIRS]
     for by, values, at in (("profile", PROFILES, 2), ("health band (severity at its centre)", BANDS, 3)):
         print(f"By {by}:\n")
@@ -101,5 +112,5 @@ def _print_pairs(cases, results, base, wall, duration):
             print(f"| {' + '.join(f'{k} {v:g}' for k, v in pair.items())} | " + row)
         print()
     print(f"two effects (both named): {sum(right(i) for i in results)}/{len(results)} right")
-    _print_listed("Wrong answers", [i for i in sorted(results) if not right(i)], cases, results,
-                  lambda kind, effects, profile, severity, noise, step: f"{effects} {profile} severity {severity}")
+    _print_wrong(cases, results, lambda kind, effects, profile, severity, noise, step:
+                 f"{effects} {profile} severity {severity}")

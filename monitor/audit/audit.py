@@ -165,7 +165,6 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             u0 = math.log(theta0)
             h0 = math.log(max(fit.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u0
             u1 = u0 + h0
-            h1 = h0
             for _ in range(cand.refits):
                 h1, fit = h(u1)
                 if abs(h1) < 1e-3 or h1 == h0:
