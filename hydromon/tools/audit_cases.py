@@ -39,6 +39,8 @@ LADDER = (1, 2, 4, 8)  # multiples of the claimed limit swept by --ladder
 LADDER_SEED = 10_000  # a ladder record's seed is the base plus this plus its index
 CLEAN_SEED = 20_000  # a --clean record's seed is the base plus this plus its index
 PAIR_SEED = 30_000  # a --pairs record's seed is the base plus this plus its index
+RIG_SEED = 40_000  # a --rigs record's seed is the base plus this plus its index
+RIG_MULTIPLE = 4  # a --rigs record holds its effect at this multiple of the claimed limit, scaled to its rig
 PAIRS = (("entrained_air", 0.04, "load_offset", 800.0), ("valve_dead_band", 20.0, "load_offset", -800.0),
          ("sensor_delay", 3, "entrained_air", 0.04))
 OUTSIDE = ("pi_loop", "pressure_gain", "seal_friction")
@@ -92,18 +94,57 @@ def _pair_cases(repeats):
             for profile in PROFILES for sev in BANDS for k in range(repeats)]
 
 
+def _rig_cases(repeats):
+    """``--rigs N``: N records per effect (and clean), profile, band and noise level, each on a rig
+    of its own (``_record``), the effect at ``RIG_MULTIPLE`` times its claimed limit."""
+    return [("rig", {} if name is None else {name: RIG_MULTIPLE * CLAIMS[name][1][noise]}, profile, sev, noise,
+             f"repeat {k}") for noise in NOISES for name in (None, *CLAIMS) for profile in PROFILES
+            for sev in BANDS for k in range(repeats)]
+
+
+def _scaled(name, v, config, plant) -> float:
+    """A magnitude given for the reference rig, in its ``CLAIMS`` unit, scaled to ``config`` and its
+    healthy ``plant``: a force (load offset, Stribeck hump) by the rig's largest hydraulic force
+    A1 p_s; a supply sag [Pa/(m^3/s)] by p_s / A1 (the same share of the supply lost at the same
+    piston speed); a dead band by the spool opening that drives the same piston speed,
+    A1 / (C_d W / sqrt(rho) sqrt(p_s)). Shares, fractions and samples stay as they are."""
+    from hydromon.contract import RigConfig
+    from plant_sim.params import PlantParams
+
+    ref, ref_p = RigConfig(), PlantParams()
+    if name in ("load_offset", "stribeck_friction"):
+        return v * config.A1 * config.p_s / (ref.A1 * ref.p_s)
+    if name == "supply_pressure_sag":
+        return v * config.p_s / ref.p_s * ref.A1 / config.A1
+    if name == "valve_dead_band":
+        opening = lambda c, p: c.A1 / (p.CdW_sqrt_rho * c.p_s ** 0.5)  # noqa: E731
+        return v * opening(config, plant) / opening(ref, ref_p)
+    return v
+
+
 def _record(kind, effects, profile, severity, noise, seed, duration=DURATION):
-    from plant_sim.degradation import degrade
+    """One record's samples (N, 5) and its rig config. A ``rig`` record runs on a rig of its own
+    (``plant_sim.rigs.random_rig``, drawn from its seed), degraded to ``severity`` from that
+    rig's healthy plant, its effects scaled to it (``_scaled``); every other on the reference rig."""
+    from hydromon.contract import RigConfig
+    from plant_sim.degradation import degrade, degrade_relative
     from plant_sim.noise import noise_model
     from plant_sim.params import Controller, Effects
     from plant_sim.profiles import parse_profile
+    from plant_sim.rigs import random_rig
     from plant_sim.simulate import simulate
 
-    prof, params = parse_profile(profile), degrade(severity)
+    prof = parse_profile(profile)
+    if kind == "rig":
+        config, healthy = random_rig(np.random.default_rng([seed, 11]))
+        params = degrade_relative(severity, healthy, config)
+        effects = {name: _scaled(name, v, config, healthy) for name, v in effects.items()}
+    else:
+        config, params = RigConfig(), degrade(severity)
     kw, ctrl = {}, Controller()
     for name, v in effects.items():
         if name == "valve_saturation":
-            free = simulate(prof, duration, params=params)
+            free = simulate(prof, duration, params=params, config=config)
             kw["x_max"] = float(np.quantile(np.abs(free.states[:, 4]), 1.0 - v))
         elif name == "pi_loop":
             ctrl = Controller(K_i=2.0)
@@ -111,8 +152,8 @@ def _record(kind, effects, profile, severity, noise, seed, duration=DURATION):
             kw["seal_friction"] = SEAL
         elif name != "pressure_gain":
             kw.update(CLAIMS[name][3](v))
-    run = simulate(prof, duration, params=params, effects=Effects(**kw), noise=noise_model(noise), seed=seed,
-                   controller=ctrl)
+    run = simulate(prof, duration, params=params, config=config, effects=Effects(**kw),
+                   noise=noise_model(noise, config), seed=seed, controller=ctrl)
     s = run.samples.copy()
     if "pressure_gain" in effects:
         s[:, 2] *= 1.03  # the cap-side pressure sensor reads 3 % high
@@ -142,7 +183,7 @@ def _drawn(profile, severity, seed):
 
 
 def _truth(kind, effects):
-    if kind == "clean":
+    if kind == "clean" or not effects:
         return ["none"]
     if kind == "outside":
         return ["unexplained"]

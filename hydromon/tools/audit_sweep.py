@@ -1,8 +1,8 @@
 """The audit's sweep: every effect on every input profile, health band and noise level.
 
 ``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]
-[--fixed] [--duration S] [--only NAME | --ladder NAME | --clean N [--noise LIST] | --pairs N]`` prints the tables of
-``docs/audit.md``. Every record is 20 s (``--duration``) at 100 Hz from ``plant_sim``; its seed is
+[--fixed] [--duration S] [--only NAME | --ladder NAME | --clean N [--noise LIST] | --pairs N | --rigs N]``
+prints the tables of ``docs/audit.md``. Every record is 20 s (``--duration``) at 100 Hz from ``plant_sim``; its seed is
 ``BASE[seeds] + its index`` in the fixed list (``hydromon.tools.audit_cases``; the ``tune`` seeds were used to set the
 audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen). The seed
 draws the record's noise and also its own input and health (``_drawn``): the profile's parameters
@@ -37,7 +37,12 @@ clean records for each profile, band and noise level ``none``, ``realistic``, ``
 sets its noise levels (e.g. ``pct:0.01,pct:0.02``: 1e-4 and 2e-4 of each sensor's span, between
 ``realistic`` and ``stress``). ``--pairs N`` audits N records of each two-effect pair (``PAIRS``)
 for each profile and band at realistic noise (seed ``BASE + 30000 + its index``): the main list
-holds only one record of each pair and profile, each at one band.
+holds only one record of each pair and profile, each at one band. ``--rigs N`` audits, at each
+noise level, N clean records and N of each effect at ``RIG_MULTIPLE`` (4) times its claimed limit
+per profile and band, each on a rig of its own (seed ``BASE + 40000 + its index``): the rig's
+constants and healthy plant drawn by ``plant_sim.rigs.random_rig`` (piston area 0.4-2.5 times the
+reference's, supply 8-21 MPa, mass, stiffness, valve and friction each by its own factor) and
+degraded from there, the effect's magnitude scaled to the rig (``audit_cases._scaled``).
 """
 
 from __future__ import annotations
@@ -51,9 +56,10 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 from .audit_cases import (BANDS, BASE, CLAIMS, CLEAN_NOISES, CLEAN_SEED, DURATION, LADDER, LADDER_SEED,  # noqa: F401
-                          NOISES, OUTSIDE, PAIR_SEED, PAIRS, PROFILES, SEAL, SEV_JITTER, STEPS, _cases,
-                          _clean_cases, _drawn, _ladder_cases, _pair_cases, _record, _truth)
-from .audit_tables import _print_clean, _print_ladder, _print_pairs, _print_tables
+                          NOISES, OUTSIDE, PAIR_SEED, PAIRS, PROFILES, RIG_MULTIPLE, RIG_SEED, SEAL, SEV_JITTER,
+                          STEPS, _cases, _clean_cases, _drawn, _ladder_cases, _pair_cases, _record, _rig_cases,
+                          _truth)
+from .audit_tables import _print_clean, _print_ladder, _print_pairs, _print_rigs, _print_tables
 
 
 def _audit_one(args):
@@ -65,6 +71,8 @@ def _audit_one(args):
         profile, severity = _drawn(profile, severity, seed)
     drawn = f"{profile} severity {severity}"
     s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
+    if kind == "rig":
+        drawn += f" on a rig of A1 {cfg.A1 * 1e4:.0f} cm^2, p_s {cfg.p_s / 1e6:.1f} MPa"
     try:
         res = audit(s, cfg, AuditOptions(free_run=False))
     except ValueError as e:  # a record the audit refuses (as the CLI would, exit 2) is a wrong answer
@@ -90,6 +98,9 @@ def main(argv=None):
                     help="audit N clean records per profile, band and noise level instead")
     ap.add_argument("--pairs", type=int, default=None, metavar="N",
                     help="audit N records of each two-effect pair per profile and band instead")
+    ap.add_argument("--rigs", type=int, default=None, metavar="N",
+                    help=f"audit N records of each effect (at {RIG_MULTIPLE} times its claimed limit, scaled to the "
+                         "rig) and N clean ones per profile, band and noise level, each on a rig of its own, instead")
     ap.add_argument("--noise", default=",".join(CLEAN_NOISES), metavar="LIST",
                     help="with --clean: comma-separated noise models (none, realistic, stress, or pct:F, F %% of "
                          f"each sensor's span; default {','.join(CLEAN_NOISES)})")
@@ -102,6 +113,8 @@ def main(argv=None):
         ap.error("--clean takes N >= 1, and not with --ladder")
     if args.pairs is not None and (args.pairs < 1 or args.ladder or args.clean):
         ap.error("--pairs takes N >= 1, and not with --ladder or --clean")
+    if args.rigs is not None and (args.rigs < 1 or args.ladder or args.clean or args.pairs):
+        ap.error("--rigs takes N >= 1, and not with --ladder, --clean or --pairs")
     from plant_sim.noise import noise_model
 
     noises = tuple(n.strip() for n in args.noise.split(","))
@@ -121,6 +134,8 @@ def main(argv=None):
         cases, first, only = _clean_cases(args.clean, noises), base + CLEAN_SEED, None
     elif args.pairs:
         cases, first, only = _pair_cases(args.pairs), base + PAIR_SEED, None
+    elif args.rigs:
+        cases, first, only = _rig_cases(args.rigs), base + RIG_SEED, None
     else:
         cases, first, only = _cases(), base, args.only  # --only selects among the main list's records
     todo = [(i, c, first + i, args.fixed, args.duration) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
@@ -149,6 +164,9 @@ def main(argv=None):
         return
     if args.pairs:
         _print_pairs(cases, results, base, wall, args.duration)
+        return
+    if args.rigs:
+        _print_rigs(cases, results, base, wall, args.duration)
         return
     _print_tables(cases, results, args.seeds, base, wall, args.duration)
     (secs, cause), (secs_clean, cause_clean) = _time_60s({"load_offset": 1000.0}), _time_60s({})

@@ -6,7 +6,7 @@ from __future__ import annotations
 from functools import partial
 
 from .audit_cases import BANDS, CLAIMS, CLEAN_NOISES, CLEAN_SEED, LADDER, LADDER_SEED, NOISES, PAIR_SEED, PAIRS, \
-    PROFILES, STEPS
+    PROFILES, RIG_MULTIPLE, RIG_SEED, STEPS
 
 
 def _right(results, i) -> bool:
@@ -114,3 +114,24 @@ def _print_pairs(cases, results, base, wall, duration):
     print(f"two effects (both named): {sum(right(i) for i in results)}/{len(results)} right")
     _print_wrong(cases, results, lambda kind, effects, profile, severity, noise, step:
                  f"{effects} {profile} severity {severity}")
+
+
+def _print_rigs(cases, results, base, wall, duration):
+    print(f"Records on rigs of their own, base {base} (seeds base + {RIG_SEED} + index), {len(results)} records of "
+          f"{duration:g} s, {wall:.0f} s wall. Each effect at {RIG_MULTIPLE} times its claimed limit, scaled to "
+          f"the rig. Each cell: records named right of the five bands' records.\n")
+    print("| noise | record | magnitude on the reference rig | " + " | ".join(PROFILES) + " | all |")
+    print("|---|---|---|" + "---|" * (len(PROFILES) + 1))
+    right = partial(_right, results)
+    for noise in NOISES:
+        for name in (None, *CLAIMS):
+            what = (lambda e: not e) if name is None else (lambda e: name in e)
+            row = _profile_cells(results, right, lambda i, p: cases[i][4] == noise and what(cases[i][1])
+                                 and cases[i][2] == p)
+            size = "-" if name is None else f"{RIG_MULTIPLE * CLAIMS[name][1][noise]:g} {CLAIMS[name][0]}"
+            print(f"| {noise} | {name or 'clean'} | {size} | " + row)
+    for label, sel in (("one effect", lambda e: bool(e)), ("clean (named 'none')", lambda e: not e)):
+        idx = [i for i in results if sel(cases[i][1])]
+        print(f"\n{label}: {sum(right(i) for i in idx)}/{len(idx)} right")
+    _print_wrong(cases, results, lambda kind, effects, profile, severity, noise, step:
+                 f"{effects or 'clean'} {profile} severity {severity} {noise}")

@@ -155,3 +155,77 @@ def test_the_record_length_reaches_every_record(monkeypatch):
     with pytest.raises(Stop):
         main(["--ladder", "load_offset", "--duration", "60"])
     assert asked == [60.0]
+
+
+def test_rig_records_cover_every_effect_and_clean_on_every_profile_band_and_noise():
+    from hydromon.tools.audit_sweep import RIG_MULTIPLE, RIG_SEED, _rig_cases
+
+    cases = _rig_cases(2)
+    cells = Counter((tuple(effects), profile, severity, noise) for kind, effects, profile, severity, noise, _ in cases)
+    assert set(cells) == {(w, p, s, n) for w in [(), *((name,) for name in CLAIMS)] for p in PROFILES
+                          for s in BANDS for n in NOISES}
+    assert set(cells.values()) == {2}
+    for kind, effects, _, _, noise, _ in cases:
+        assert kind == "rig"
+        assert all(v == RIG_MULTIPLE * CLAIMS[name][1][noise] for name, v in effects.items())
+    assert RIG_SEED > PAIR_SEED + len(_pair_cases(5))  # --pairs 5 and --rigs N never share a seed
+
+
+def test_a_magnitude_scales_to_the_rig_and_stays_on_the_reference_rig():
+    from hydromon.contract import RigConfig
+    from plant_sim.params import PlantParams
+
+    from hydromon.tools.audit_cases import _scaled
+
+    ref, plant = RigConfig(), PlantParams()
+    for name in CLAIMS:
+        assert _scaled(name, 3.0, ref, plant) == pytest.approx(3.0)
+    big = ref.model_copy(update={"A1": 2 * ref.A1, "p_s": 1.5 * ref.p_s})
+    assert _scaled("load_offset", 100.0, big, plant) == pytest.approx(300.0)  # 3x the largest force
+    assert _scaled("stribeck_friction", 30.0, big, plant) == pytest.approx(90.0)
+    assert _scaled("supply_pressure_sag", 1e10, big, plant) == pytest.approx(0.75e10)  # p_s / A1
+    # twice the area at 1.5 times the supply: the same speed takes 2 / sqrt(1.5) the spool opening
+    assert _scaled("valve_dead_band", 10.0, big, plant) == pytest.approx(10.0 * 2 / 1.5 ** 0.5)
+    assert _scaled("entrained_air", 0.04, big, plant) == 0.04
+    assert _scaled("sensor_delay", 3, big, plant) == 3
+
+
+def test_a_rig_record_runs_on_a_rig_of_its_own_drawn_from_its_seed():
+    import numpy as np
+
+    from hydromon.contract import RigConfig
+    from hydromon.tools.audit_sweep import _record
+
+    (s1, c1), (s2, c2) = (_record("rig", {}, "steps", 0.5, "none", seed, duration=2.0) for seed in (1, 2))
+    assert c1 != RigConfig() and c2 != c1
+    assert not np.array_equal(s1, s2)
+    again, c_again = _record("rig", {}, "steps", 0.5, "none", 1, duration=2.0)
+    assert c_again == c1 and np.array_equal(again, s1)
+    offset, _ = _record("rig", {"load_offset": 400.0}, "steps", 0.5, "none", 1, duration=2.0)
+    assert not np.array_equal(offset, s1)  # the same rig, with the offset
+    assert _record("clean", {}, "steps", 0.5, "none", 1, duration=2.0)[1] == RigConfig()
+
+
+@pytest.mark.parametrize("argv", [["--rigs", "0"], ["--rigs", "1", "--pairs", "1"],
+                                  ["--rigs", "1", "--ladder", "load_offset"]])
+def test_a_rig_sweep_of_no_records_or_beside_another_sweep_is_refused(argv, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    assert "--rigs takes N >= 1" in capsys.readouterr().err
+
+
+def test_a_rig_sweep_counts_each_effect_and_the_clean_records_per_profile(monkeypatch, capsys):
+    from hydromon.tools import audit_sweep
+
+    def audit_one(args):  # right except in the fault band: 4 of 5 per cell
+        i, case, seed, fixed, duration = args
+        truth = sorted(case[1]) or ["none"]
+        return i, (truth if case[3] < 0.8 else ["unexplained"]), truth, "", case[2]
+    monkeypatch.setattr(audit_sweep, "_audit_one", audit_one)
+    main(["--rigs", "1", "--seed-base", "5"])
+    out = capsys.readouterr().out
+    assert "| none | clean | - | 4/5 | 4/5 | 4/5 | 4/5 | 16/20 |" in out
+    assert "| realistic | load_offset | 1600 N | 4/5 | 4/5 | 4/5 | 4/5 | 16/20 |" in out
+    assert "one effect: 224/280 right" in out and "clean (named 'none'): 32/40 right" in out
+    assert "base 5 (seeds base + 40000 + index)" in out
