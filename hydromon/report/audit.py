@@ -45,7 +45,7 @@ def to_json(result) -> dict:
         "structure": result.structure,
         "confident": result.confident,
         "note": result.note,
-        "candidates": [{"name": c.name, "score": c.score, "gain": c.gain, "value": c.value,
+        "candidates": [{"name": c.name, "score": c.score, "twin": c.twin, "gain": c.gain, "value": c.value,
                         "effect": c.effect, "residual_ratio": c.residual_ratio} for c in result.candidates],
         "gain": result.gain,
         "params_nominal": result.params_nominal,
@@ -162,10 +162,10 @@ def write_report(result, directory, what: str = "") -> Path:
     if result.note and result.note != result.words:
         md += [result.note, ""]
     md += ["## Candidates (held-out score, higher is better; free-run gain = error reduction)", "",
-           _md_table([(c.name, f"{c.score:.2f}", f"{c.gain:.2f}",
+           _md_table([(c.name, f"{c.score:.2f}", f"{c.twin:.2f}", f"{c.gain:.2f}",
                        _effect_text(c.effect),
                        c.equation.replace("|", "\\|"))
-                      for c in result.candidates], ["name", "score", "gain", "fitted", "equation"]), ""]
+                      for c in result.candidates], ["name", "score", "twin", "gain", "fitted", "equation"]), ""]
     md += [f"Not fitted: {name}: {why}." for name, why in result.unfitted.items()] + ([""] if result.unfitted else [])
     md += ["## Free run on held-out data", "",
            _md_table([(ch, f"{fr[ch]['nrmse_nominal']:.3f}", f"{fr[ch]['nrmse_extended']:.3f}",

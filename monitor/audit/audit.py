@@ -109,6 +109,88 @@ def _unfit_words(e: ValueError) -> str:
     return str(e)
 
 
+TWIN_SEED = 0
+"""Seed of the noise added to the nominal model's twin (``_twin``): the audit stays a pure function."""
+
+
+class _Equations:
+    """A record's equations: its filtered signals, the nominal fit and its floors, and any
+    candidate's fit and held-out score at one value of its searched parameter.
+
+    Parameters
+    ----------
+    s : array (N, 5)
+        ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m].
+    cfg : RigConfig
+    train_fraction : float
+        Leading share of the record the fits see [-].
+    """
+
+    def __init__(self, s: np.ndarray, cfg: RigConfig, train_fraction: float):
+        self.cfg = cfg
+        self.sig = signals(s, cfg.h)
+        self.split = int(train_fraction * self.sig.n)
+        self.cache: dict = {}  # valve fits by what they depend on
+        self.nominal = fit_blocks(build_blocks(self.sig, cfg, Spec()), self.split, cfg.h, self.cache)
+        self.p_nom = nominal_params(self.nominal)
+        self.theta0 = max(self.p_nom["CdW_sqrt_rho"], 1e-6)
+        self.floors = _floors(self.nominal, self.split)
+        self.nom_tr, self.nom_te = _mse_split(self.nominal, self.split, self.floors)
+
+    def fit(self, spec, theta0: float) -> Fit:
+        """The equations fitted under ``spec`` with the flow laws built at ``theta0``."""
+        return fit_blocks(build_blocks(self.sig, self.cfg, spec, theta0), self.split, self.cfg.h, self.cache)
+
+    def fit_at(self, cand, value):
+        """``((admissible, training log ratio), value, fit)`` of ``cand`` at ``value``; a
+        ValueError when the record's rows cannot fit it."""
+        spec = cand.spec(value)
+        fit = self.fit(spec, self.theta0)
+        if cand.refits:
+            # a flow law not linear in theta: solve theta_fit(theta0) = theta0 by secant steps on
+            # h(u) = ln theta_fit(e^u) - u (plain iteration converges slowly when the sag dominates)
+            def h(u):
+                f = self.fit(spec, math.exp(u))
+                return math.log(max(f.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u, f
+            u0 = math.log(self.theta0)
+            h0 = math.log(max(fit.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u0
+            u1 = u0 + h0
+            for _ in range(cand.refits):
+                h1, fit = h(u1)
+                if abs(h1) < 1e-3 or h1 == h0:
+                    break
+                u0, u1, h0 = u1, u1 - h1 * (u1 - u0) / (h1 - h0), h1
+                u1 = min(max(u1, u0 - 1.0), u0 + 1.0)
+            if abs(h1) > THETA_TOL:
+                # no orifice coefficient reproduces itself: the law cannot pass the record's flows
+                # (a supply line this resistive chokes them), so this value explains nothing
+                raise ValueError(f"no orifice coefficient is consistent with {cand.name} = {value:.3g}: "
+                                 "the flow law cannot pass the record's flows")
+        tr, _ = _mse_split(fit, self.split, self.floors)
+        # an unphysical fit (a friction dip, not a hump) ranks below every physical one
+        return (cand.admissible(fit.theta), _log_ratio(self.nom_tr, tr)), value, fit
+
+    def score(self, cand, physical: bool, fit: Fit, opt: AuditOptions) -> tuple[float, dict, dict]:
+        """The held-out score [-] of ``cand``'s ``fit`` (module docstring, step 2) and its
+        residual variances per block on the training and the held-out part."""
+        tr, te = _mse_split(fit, self.split, self.floors)
+        score = _log_ratio(self.nom_te, te) - opt.penalty * cand.n_extra
+        if not improves_training(_log_ratio(self.nom_tr, tr), opt.threshold) or not physical:
+            score = min(score, 0.0)  # hardly better on the data it was fitted to (noise), or unphysical
+        return score, tr, te
+
+
+def _twin(s: np.ndarray, simulated: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """The nominal model's twin of a record: its command ug, the nominal model's free run as the
+    measured channels, and white noise of the record's own noise level per channel
+    (``Signals.sigma``, seeded by ``TWIN_SEED``). It holds no effect by construction, so what a
+    candidate scores on it is what the equations make of this rig's motion at this sample rate."""
+    twin = np.array(s, dtype=float)
+    noise = np.random.default_rng(TWIN_SEED).standard_normal(simulated.shape)
+    twin[:, 1:] = simulated + noise * np.asarray(sigma, dtype=float)[None, :]
+    return twin
+
+
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
           library=LIBRARY, progress=None) -> AuditResult:
     """Audit one record.
@@ -130,14 +212,9 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     cfg = config or RigConfig()
     opt = options or AuditOptions()
     s = np.asarray(samples, dtype=float)
-    sig = signals(s, cfg.h)
-    split = int(opt.train_fraction * sig.n)
-    cache: dict = {}  # valve fits by what they depend on
-    nominal = fit_blocks(build_blocks(sig, cfg, Spec()), split, cfg.h, cache)
-    p_nom = nominal_params(nominal)
-    theta0 = max(p_nom["CdW_sqrt_rho"], 1e-6)
-    floors = _floors(nominal, split)
-    nom_tr, nom_te = _mse_split(nominal, split, floors)
+    eq = _Equations(s, cfg, opt.train_fraction)
+    sig, split, cache, nominal, p_nom, theta0 = eq.sig, eq.split, eq.cache, eq.nominal, eq.p_nom, eq.theta0
+    floors, nom_tr, nom_te = eq.floors, eq.nom_tr, eq.nom_te
     test = slice(split, sig.n)
     measured = s[:, 1:]
     # a nominal fit with impossible estimates proves nothing by equation error alone: an
@@ -147,38 +224,37 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     # whose free run diverges explains nothing (clean stress-noise records were named for a
     # residual variance that only the extension's larger predicted noise share had lowered)
     run = free_run(s, cfg, p_nom, v0=float(sig.vl[0]))
-    sim_nom = run.measured
+    sim_nom, nominal_diverged = run.measured, run.diverged
     fr_nom = channel_scores(measured, sim_nom, test)
 
     def simulate(params, effect):  # an extended model's free run; invalid parameters take the nominal ones
         return free_run(s, cfg, params, Effects(**effect), v0=float(sig.vl[0]), fallback=p_nom)
 
-    def fit_at(cand, value):
-        spec = cand.spec(value)
-        fit = fit_blocks(build_blocks(sig, cfg, spec, theta0), split, cfg.h, cache)
-        if cand.refits:
-            # a flow law not linear in theta: solve theta_fit(theta0) = theta0 by secant steps on
-            # h(u) = ln theta_fit(e^u) - u (plain iteration converges slowly when the sag dominates)
-            def h(u):
-                f = fit_blocks(build_blocks(sig, cfg, spec, math.exp(u)), split, cfg.h, cache)
-                return math.log(max(f.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u, f
-            u0 = math.log(theta0)
-            h0 = math.log(max(fit.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u0
-            u1 = u0 + h0
-            for _ in range(cand.refits):
-                h1, fit = h(u1)
-                if abs(h1) < 1e-3 or h1 == h0:
-                    break
-                u0, u1, h0 = u1, u1 - h1 * (u1 - u0) / (h1 - h0), h1
-                u1 = min(max(u1, u0 - 1.0), u0 + 1.0)
-            if abs(h1) > THETA_TOL:
-                # no orifice coefficient reproduces itself: the law cannot pass the record's flows
-                # (a supply line this resistive chokes them), so this value explains nothing
-                raise ValueError(f"no orifice coefficient is consistent with {cand.name} = {value:.3g}: "
-                                 "the flow law cannot pass the record's flows")
-        tr, _ = _mse_split(fit, split, floors)
-        # an unphysical fit (a friction dip, not a hump) ranks below every physical one
-        return (cand.admissible(fit.theta), _log_ratio(nom_tr, tr)), value, fit
+    fit_at = eq.fit_at
+    twins: list = []  # the nominal model's twin's equations, built when first asked
+
+    def twin_equations():
+        """The nominal model's twin's equations (``_twin``), or None: the nominal free run
+        diverged, or the twin's equations cannot be fitted (a twin that stays at rest, say)."""
+        if not twins:
+            try:
+                twins.append(None if nominal_diverged else
+                             _Equations(_twin(s, sim_nom, sig.sigma), cfg, opt.train_fraction))
+            except (ValueError, np.linalg.LinAlgError):
+                twins.append(None)
+        return twins[0]
+
+    def twin_score(cand, value) -> float:
+        """What ``cand`` at ``value`` scores on the nominal model's twin, at least 0 (0: no
+        twin, or the twin's rows cannot fit the candidate)."""
+        tw = twin_equations()
+        if tw is None:
+            return 0.0
+        try:
+            (physical, _), _, f = tw.fit_at(cand, value)
+        except (ValueError, np.linalg.LinAlgError):
+            return 0.0
+        return max(tw.score(cand, physical, f, opt)[0], 0.0)
 
     if progress is not None:
         progress(0, len(library), "nominal")
@@ -212,10 +288,9 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             unfitted[cand.name] = why
             continue
         (physical, _), value, fit = best
-        tr, te = _mse_split(fit, split, floors)
-        score = _log_ratio(nom_te, te) - opt.penalty * cand.n_extra
-        if not improves_training(_log_ratio(nom_tr, tr), opt.threshold) or not physical:
-            score = min(score, 0.0)  # hardly better on the data it was fitted to (noise), or unphysical
+        score, tr, te = eq.score(cand, physical, fit, opt)
+        twin = twin_score(cand, value) if score > opt.threshold else 0.0
+        score -= twin  # what the equations make of this rig's motion without any effect is no evidence
         params = nominal_params(fit)
         effect = cand.effects(value, fit.theta)
         gain, fr, sim = math.nan, {}, None
@@ -246,7 +321,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
             name=cand.name, equation=cand.equation, value=value, score=float(score),
             residual_ratio={g: te[g] / nom_te[g] if nom_te[g] > 0 else 1.0 for g in BLOCKS},
             train_ratio={g: tr[g] / nom_tr[g] if nom_tr[g] > 0 else 1.0 for g in BLOCKS},
-            gain=float(gain), freerun=fr, params=params, effect=effect, caveat=cand.caveat,
+            gain=float(gain), freerun=fr, params=params, effect=effect, caveat=cand.caveat, twin=float(twin),
             plausible=cand.plausible(effect), simulated=sim,
             residuals={g: (fit.blocks[g].rows, fit.residuals[g]) for g in BLOCKS}))
         fits[cand.name] = (cand, value, fit)
@@ -275,7 +350,14 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         return free_run_gain(run2, channel_scores(measured, run2.measured, test), fr_nom)
 
     def probe(names):
-        return probe_fits(names, fits, sig, cfg, split, theta0, cache, nominal, floors, opt.penalty)
+        # each family's score less what it scores on the nominal model's twin, as a candidate's
+        got = probe_fits(names, fits, sig, cfg, split, theta0, cache, nominal, floors, opt.penalty)
+        tw = twin_equations() if got else None
+        if tw is None:
+            return got
+        null = probe_fits(names, fits, tw.sig, cfg, split, tw.theta0, tw.cache, tw.nominal, tw.floors, opt.penalty)
+        return {fam: (sc - max(null[fam][0], 0.0) if fam in null else sc, base, f)
+                for fam, (sc, base, f) in got.items()}
 
     def score_of(nom_fit, ext_fit):
         fl = _floors(nom_fit, split)

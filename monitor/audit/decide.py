@@ -57,7 +57,8 @@ from .candidates import StribeckFriction
 from .hump import HUMP_GAIN, HUMP_TRAIN, V_NOISE_MAX, V_S_MIN, HumpEvidence
 from .reach import REACH_GRID, REACH_V_S
 from .shadow import offset_shadow
-from .verdict import EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape
+from .verdict import (EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape,
+                      twin_words)
 
 __all__ = ["Verdict", "decide", "STRUCTURE"]
 
@@ -77,7 +78,8 @@ steps) to 4.4; second candidates on one-effect records (10-sample delay, 120 um 
 4000 N load offset) scored 0 or less."""
 
 PROBE = 0.5
-"""Held-out score (log variance ratio of the force equation, less 0.01 per column) above which a
+"""Held-out score (log variance ratio of the force equation, less 0.01 per column and less its
+score on the nominal model's twin) above which a
 family of ``monitor.audit.probe.PROBES`` columns, fitted beyond the named model, is structure
 no candidate explains [-]. Tuning records (bases 6200000 and 6300000): a 3 % cap-side
 pressure-gain error scored 0.70-3.7 (the pressure family), a seal friction of 1e-4 m^2 times
@@ -311,6 +313,9 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
         else:
             best = results[0]
             note = f"no extension earns its place (best {best.name} scores {best.score:.2f} <= {need[best.name]:g})"
+        twinned = [c for c in results if c.twin > 0 and c.score <= need[c.name] < c.score + c.twin]
+        if twinned:
+            note += "; " + "; ".join(twin_words(c) for c in twinned)
         weak = [c for c in results if thr / 3 < c.score <= need[c.name]]
         if weak:
             note += "; weak evidence for " + ", ".join(f"{c.name} ({c.score:.2f})" for c in weak)

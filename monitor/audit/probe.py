@@ -5,8 +5,9 @@ takes the constant part of a pressure sensor's gain error, Coulomb friction the 
 that grows with pressure) and leave the rest. ``probe_fits`` fits families of generic force-equation
 columns beyond the named model and scores each as the audit scores a candidate (held-out log ratio
 of the force equation's residual variance above the nominal fit's floors, less ``penalty`` per
-column, and no better than 0 unless the training part improves too); ``monitor.audit.decide``
-says ``unexplained`` when one scores above its ``PROBE``.
+column, and no better than 0 unless the training part improves too); the audit takes off what
+the same family scores on the nominal model's twin (``monitor.audit.audit._twin``), and
+``monitor.audit.decide`` says ``unexplained`` when one scores above its ``PROBE``.
 """
 
 from __future__ import annotations

@@ -54,7 +54,12 @@ class CandidateResult:
     value : object
         The searched parameter's best value (SI; sensor delay: (samples, in_loop)).
     score : float
-        Held-out information-criterion score (higher = better; > threshold earns its place).
+        Held-out information-criterion score (higher = better; > threshold earns its place), less
+        ``twin``.
+    twin : float
+        What the same extension at the same value scores on the nominal model's twin (the
+        nominal free run with the record's noise level: no effect by construction), at least 0
+        [-]; computed only for a candidate that scores above the threshold.
     residual_ratio : dict
         Held-out residual variance extended / nominal, per block.
     train_ratio : dict
@@ -84,6 +89,7 @@ class CandidateResult:
     effect: dict
     caveat: str = ""
     plausible: bool = True
+    twin: float = 0.0
     simulated: np.ndarray | None = field(default=None, repr=False, compare=False)
     residuals: dict = field(default_factory=dict, repr=False, compare=False)
 

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 __all__ = ["POSITIVE_AUDIT", "EQUATION_OF", "impossible_params", "residual_shape", "cause_words",
-           "param_shift_words"]
+           "param_shift_words", "twin_words"]
 
 # Positive on every rig and pinned by the chamber and valve equations (the force balance's m
 # and B + f_v are left out: an unmodelled load offset, one of the effects the audit names, drives
@@ -92,3 +92,10 @@ def param_shift_words(p_nom: dict, p_ext: dict, top: int = 2) -> str:
         rel.append((abs(w - v) / abs(v), k, v, w))
     rel.sort(reverse=True)
     return ", ".join(f"{READABLE.get(k, k)} {v:.3g} -> {w:.3g}" for _, k, v, w in rel[:top])
+
+
+def twin_words(c) -> str:
+    """A candidate whose equation score the nominal model's twin matches, in words."""
+    return (f"{c.name} scores {c.score + c.twin:.2f} on the equations, but {c.twin:.2f} of it on the nominal model's "
+            "twin as well (its free run with this record's noise, which holds no effect): what the equations make "
+            "of this rig's motion at this sample rate, not evidence of it")

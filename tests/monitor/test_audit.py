@@ -142,7 +142,7 @@ def test_json_and_report(tmp_path):
     doc = json.loads(json.dumps(to_json(res)))
     assert set(doc) >= {"cause", "candidates", "gain", "params_nominal", "params_extended"}
     assert {c["name"] for c in doc["candidates"]} == set(EFFECT_NAMES)
-    assert all(set(c) >= {"name", "score", "gain"} for c in doc["candidates"])
+    assert all(set(c) >= {"name", "score", "twin", "gain"} for c in doc["candidates"])
     assert "load_offset" in doc["params_extended"]
     md = write_report(res, tmp_path / "rep")
     assert md.exists() and (tmp_path / "rep" / "freerun.png").exists()

@@ -204,27 +204,28 @@ def test_a_negative_air_fraction_is_no_air(profile, severity, seed, named):
     assert res.cause == named and res.confident, (res.cause, res.note)
 
 
-def test_a_stribeck_hump_simulated_to_fade_over_a_sliding_speed_is_not_named():
+def test_a_hump_that_the_nominal_twin_shows_as_well_is_not_named():
     # a clean noise-free steps record in the fault band: the piston creeps at 1.6 mm/s between
-    # sticks, Stribeck friction scores 0.99, and its output-error refinement spreads the "hump"
-    # over 123 mm/s, far beyond any speed the piston reaches: a friction level, not a hump
+    # sticks and Stribeck friction scores 0.99 on the equations; the nominal model's own twin
+    # (its free run, no effect in it) scores the hump as high, so the equations' hump is what
+    # they make of this creeping motion (its output-error refinement spread it over 123 mm/s)
     s, cfg = _record("clean", {}, "steps:low=1.566,high=2.452,period=1.823", 0.844, "none", 8220071)
     res = audit(s, cfg, AuditOptions(free_run=False))
     hump = next(c for c in res.candidates if c.name == "stribeck_friction")
-    assert hump.score > 0.3 and not hump.plausible, (hump.score, hump.effect)
+    assert hump.score + hump.twin > 0.3 and hump.score <= 0.3, (hump.score, hump.twin)
     assert res.cause == "none", (res.cause, res.note)
-    assert "fades over 123 mm/s" in res.note, res.note
+    assert "stribeck_friction scores" in res.note and "nominal model's twin" in res.note, res.note
 
 
-def test_a_tie_that_the_free_run_does_not_break_names_nothing():
+def test_a_tie_that_the_nominal_twin_shows_as_well_names_nothing():
     # a clean noise-free paper-var record in the fault band: a supply sag of about 1.3e8 and
-    # entrained air tie at 0.21, and neither simulates the held-out part better than the nominal
+    # entrained air tied at 0.21 on the equations, neither simulating the held-out part better
+    # than the nominal model; the nominal model's twin scores the sag at 0.19 as well
     s, cfg = _record("clean", {}, "paper-var:period=6.674", 0.865, "none", 8220046)
     res = audit(s, cfg, AuditOptions(free_run=False))
-    top = res.candidates[0]
-    assert top.score > 0.15 and top.gain <= 0, (top.name, top.score, top.gain)
-    assert res.cause == "none" and not res.confident, (res.cause, res.note)
-    assert "cannot tell" in res.note and "nothing is named" in res.note, res.note
+    sag = next(c for c in res.candidates if c.name == "supply_pressure_sag")
+    assert sag.score + sag.twin > 0.15 and sag.score <= 0.15, (sag.score, sag.twin)
+    assert res.cause == "none", (res.cause, res.note)
 
 
 def test_air_at_fault_grade_health_whose_noise_rivals_its_signal_is_named():
