@@ -57,3 +57,19 @@ def test_a_hump_on_a_rig_of_its_own_is_named_beside_its_twin():
     s, cfg = _rig_record(20)  # paper-id, health band
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert res.cause == "stribeck_friction", res.note
+
+
+def test_a_nominal_free_run_that_strays_from_the_record_has_no_twin():
+    """A 4000 N load offset on a noise-free multisine record at fault-grade health (held-out base
+    12300000, main list record 164): the nominal model's free run strays to 2.6 times x1's spread,
+    and a twin of it scored the offset at 11.6, taking the name off it."""
+    from monitor.audit.audit import TWIN_FIT
+    from monitor.audit.freerun import mean_nrmse
+
+    s, cfg = _record("one", {"load_offset": 4000.0},
+                     "multisine:offset=1.848,amplitude=0.603,freqs=0.249/0.580/1.077/2.403/3.397", 0.956, "none",
+                     12_300_164)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert mean_nrmse(res.freerun_nominal) > TWIN_FIT
+    assert res.cause == "load_offset", res.note
+    assert all(c.twin == 0.0 for c in res.candidates)
