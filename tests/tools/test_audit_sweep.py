@@ -37,13 +37,16 @@ def test_pair_repeats_cover_every_pair_profile_and_band_at_realistic_noise():
     assert PAIR_SEED > CLEAN_SEED + len(_clean_cases(5))  # --clean 5 and --pairs N never share a seed
 
 
-@pytest.mark.parametrize("argv", [["--pairs", "0"], ["--pairs", "1", "--clean", "1"],
-                                  ["--pairs", "1", "--ladder", "load_offset"]])
-def test_a_pair_sweep_of_no_records_or_beside_another_sweep_is_refused(argv, capsys):
+@pytest.mark.parametrize("argv, said", [
+    (["--pairs", "0"], "--pairs takes N >= 1"), (["--pairs", "1", "--clean", "1"], "--pairs takes N >= 1"),
+    (["--pairs", "1", "--ladder", "load_offset"], "--pairs takes N >= 1"), (["--rigs", "0"], "--rigs takes N >= 1"),
+    (["--rigs", "1", "--pairs", "1"], "--rigs takes N >= 1"),
+    (["--rigs", "1", "--ladder", "load_offset"], "--rigs takes N >= 1")])
+def test_a_pair_or_rig_sweep_of_no_records_or_beside_another_sweep_is_refused(argv, said, capsys):
     with pytest.raises(SystemExit) as e:
         main(argv)
     assert e.value.code == 2
-    assert "--pairs takes N >= 1" in capsys.readouterr().err
+    assert said in capsys.readouterr().err
 
 
 def test_a_pair_sweep_counts_both_effects_named_per_profile_and_band(monkeypatch, capsys):
@@ -204,15 +207,6 @@ def test_a_rig_record_runs_on_a_rig_of_its_own_drawn_from_its_seed():
     offset, _ = _record("rig", {"load_offset": 400.0}, "steps", 0.5, "none", 1, duration=2.0)
     assert not np.array_equal(offset, s1)  # the same rig, with the offset
     assert _record("clean", {}, "steps", 0.5, "none", 1, duration=2.0)[1] == RigConfig()
-
-
-@pytest.mark.parametrize("argv", [["--rigs", "0"], ["--rigs", "1", "--pairs", "1"],
-                                  ["--rigs", "1", "--ladder", "load_offset"]])
-def test_a_rig_sweep_of_no_records_or_beside_another_sweep_is_refused(argv, capsys):
-    with pytest.raises(SystemExit) as e:
-        main(argv)
-    assert e.value.code == 2
-    assert "--rigs takes N >= 1" in capsys.readouterr().err
 
 
 def test_a_rig_sweep_counts_each_effect_and_the_clean_records_per_profile(monkeypatch, capsys):
