@@ -12,7 +12,9 @@
 
    with V_g the held-out residual variance of block g (force, rest, chamber, valve; the
    regressor-noise share removed, see ``monitor.audit.residuals.Fit.mse``) and k the
-   parameters the extension adds. A term earns its place when its score exceeds
+   parameters the extension adds, less what the same extension at the same value scores on
+   the nominal model's twin (``monitor.audit.equations._twin``: the nominal free run with the
+   record's noise level, which holds no effect). A term earns its place when its score exceeds
    ``threshold`` AND it also improves the training part (sum of training log ratios above
    ``TRAIN_SHARE`` of the threshold): an improvement that appears on one part only is noise.
    The score is scale-free (a relative variance reduction, 0.1 = about 10 %); we do not use
@@ -46,9 +48,9 @@ from hydromon.contract import RigConfig
 from plant_sim.params import Effects
 
 from .candidates import LIBRARY
+from .equations import TWIN_FIT, _Equations, _floors, _log_ratio, _mse_split, _twin
 from .freerun import channel_scores, free_run, free_run_gain, mean_nrmse, output_error_fit
-from .residuals import (BLOCKS, Fit, Spec, build_blocks, fit_blocks, improves_training, merge_specs,
-                        nominal_params, signals)
+from .residuals import BLOCKS, merge_specs, nominal_params
 from .verdict import EQUATION_OF, POSITIVE_AUDIT, impossible_params  # noqa: F401  (re-exported)
 from .decide import decide
 from .hump import hump_evidence
@@ -59,38 +61,6 @@ from .result import AuditOptions, AuditResult, CandidateResult
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
 
 POLISH = (0.4, 0.6, 0.8, 1.25)  # factors on a refined searched value tried in the free-run polish
-THETA_TOL = 0.05
-"""Log mismatch [-] between the orifice coefficient a flow law not linear in theta (the supply
-sag) is built with and the one its fit returns, above which the value is refused: on a 1.6e10
-Pa/(m^3/s) sag at realistic noise (tuning sag ladder, record 127) the secant steps converged to
-0.001 at the true value and stalled at 0.29-1.3 from 2.1e10 up, where the fits' free runs erred
-up to 13 times as much as the nominal model's."""
-
-
-def _floors(fit: Fit, split: int) -> tuple[dict, dict]:
-    """The nominal fit's resolution per block on the training and the held-out part: every
-    model is compared above it (a model whose regressor noise differs must not win by that)."""
-    tr, te = {}, {}
-    for g in BLOCKS:
-        rows = fit.blocks[g].rows
-        tr[g], te[g] = fit.floor(g, rows < split), fit.floor(g, rows >= split)
-    return tr, te
-
-
-def _mse_split(fit: Fit, split: int, floors: tuple[dict, dict] | None = None) -> tuple[dict, dict]:
-    """Residual variance per block on the training and the held-out part (above ``floors``)."""
-    tr, te = {}, {}
-    for g in BLOCKS:
-        rows = fit.blocks[g].rows
-        f_tr, f_te = (floors[0][g], floors[1][g]) if floors else (0.0, 0.0)
-        tr[g], te[g] = fit.mse(g, rows < split, f_tr), fit.mse(g, rows >= split, f_te)
-    return tr, te
-
-
-def _log_ratio(nom: dict, ext: dict) -> float:
-    return sum(math.log(nom[g] / ext[g]) for g in BLOCKS if nom[g] > 0 and ext[g] > 0)
-
-
 def _output_error(cand, params, effect, s, cfg, split, fallback, v0):
     """The candidate's free-run variables refined on the training part's free-run error from
     each of its starts; returns the best (params, effect)."""
@@ -107,95 +77,6 @@ def _unfit_words(e: ValueError) -> str:
         return ("its extended equations are singular on this record's rows: what it adds is a combination of "
                 "the nominal model's terms there")
     return str(e)
-
-
-TWIN_SEED = 0
-"""Seed of the noise added to the nominal model's twin (``_twin``): the audit stays a pure function."""
-
-TWIN_FIT = 0.1
-"""Held-out mean NRMSE [-] of the nominal free run above which it has no twin: a free run that
-strays that far from the record does not move as the rig did. A 4000 N load offset on a
-noise-free multisine record at fault-grade health left the nominal free run at 2.6 times x1's
-spread, and its twin scored the offset at 11.6; the clean records of the tuning rigs whose
-equations the twin explained were followed to 0.002-0.04."""
-
-
-class _Equations:
-    """A record's equations: its filtered signals, the nominal fit and its floors, and any
-    candidate's fit and held-out score at one value of its searched parameter.
-
-    Parameters
-    ----------
-    s : array (N, 5)
-        ug [V], x1 [m], x3 [Pa], x4 [Pa], x5 [m].
-    cfg : RigConfig
-    train_fraction : float
-        Leading share of the record the fits see [-].
-    """
-
-    def __init__(self, s: np.ndarray, cfg: RigConfig, train_fraction: float):
-        self.cfg = cfg
-        self.sig = signals(s, cfg.h)
-        self.split = int(train_fraction * self.sig.n)
-        self.cache: dict = {}  # valve fits by what they depend on
-        self.nominal = fit_blocks(build_blocks(self.sig, cfg, Spec()), self.split, cfg.h, self.cache)
-        self.p_nom = nominal_params(self.nominal)
-        self.theta0 = max(self.p_nom["CdW_sqrt_rho"], 1e-6)
-        self.floors = _floors(self.nominal, self.split)
-        self.nom_tr, self.nom_te = _mse_split(self.nominal, self.split, self.floors)
-
-    def fit(self, spec, theta0: float) -> Fit:
-        """The equations fitted under ``spec`` with the flow laws built at ``theta0``."""
-        return fit_blocks(build_blocks(self.sig, self.cfg, spec, theta0), self.split, self.cfg.h, self.cache)
-
-    def fit_at(self, cand, value):
-        """``((admissible, training log ratio), value, fit)`` of ``cand`` at ``value``; a
-        ValueError when the record's rows cannot fit it."""
-        spec = cand.spec(value)
-        fit = self.fit(spec, self.theta0)
-        if cand.refits:
-            # a flow law not linear in theta: solve theta_fit(theta0) = theta0 by secant steps on
-            # h(u) = ln theta_fit(e^u) - u (plain iteration converges slowly when the sag dominates)
-            def h(u):
-                f = self.fit(spec, math.exp(u))
-                return math.log(max(f.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u, f
-            u0 = math.log(self.theta0)
-            h0 = math.log(max(fit.theta["chamber"]["CdW_sqrt_rho"], 1e-6)) - u0
-            u1 = u0 + h0
-            for _ in range(cand.refits):
-                h1, fit = h(u1)
-                if abs(h1) < 1e-3 or h1 == h0:
-                    break
-                u0, u1, h0 = u1, u1 - h1 * (u1 - u0) / (h1 - h0), h1
-                u1 = min(max(u1, u0 - 1.0), u0 + 1.0)
-            if abs(h1) > THETA_TOL:
-                # no orifice coefficient reproduces itself: the law cannot pass the record's flows
-                # (a supply line this resistive chokes them), so this value explains nothing
-                raise ValueError(f"no orifice coefficient is consistent with {cand.name} = {value:.3g}: "
-                                 "the flow law cannot pass the record's flows")
-        tr, _ = _mse_split(fit, self.split, self.floors)
-        # an unphysical fit (a friction dip, not a hump) ranks below every physical one
-        return (cand.admissible(fit.theta), _log_ratio(self.nom_tr, tr)), value, fit
-
-    def score(self, cand, physical: bool, fit: Fit, opt: AuditOptions) -> tuple[float, dict, dict]:
-        """The held-out score [-] of ``cand``'s ``fit`` (module docstring, step 2) and its
-        residual variances per block on the training and the held-out part."""
-        tr, te = _mse_split(fit, self.split, self.floors)
-        score = _log_ratio(self.nom_te, te) - opt.penalty * cand.n_extra
-        if not improves_training(_log_ratio(self.nom_tr, tr), opt.threshold) or not physical:
-            score = min(score, 0.0)  # hardly better on the data it was fitted to (noise), or unphysical
-        return score, tr, te
-
-
-def _twin(s: np.ndarray, simulated: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """The nominal model's twin of a record: its command ug, the nominal model's free run as the
-    measured channels, and white noise of the record's own noise level per channel
-    (``Signals.sigma``, seeded by ``TWIN_SEED``). It holds no effect by construction, so what a
-    candidate scores on it is what the equations make of this rig's motion at this sample rate."""
-    twin = np.array(s, dtype=float)
-    noise = np.random.default_rng(TWIN_SEED).standard_normal(simulated.shape)
-    twin[:, 1:] = simulated + noise * np.asarray(sigma, dtype=float)[None, :]
-    return twin
 
 
 def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOptions | None = None,
@@ -344,7 +225,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         if spec is None:
             return None
         try:
-            f = fit_blocks(build_blocks(sig, cfg, spec, theta0), split, cfg.h, cache)
+            f = eq.fit(spec, theta0)
         except ValueError:
             return None
         tr1, te1 = _mse_split(f1, split, floors)

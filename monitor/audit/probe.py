@@ -6,7 +6,7 @@ that grows with pressure) and leave the rest. ``probe_fits`` fits families of ge
 columns beyond the named model and scores each as the audit scores a candidate (held-out log ratio
 of the force equation's residual variance above the nominal fit's floors, less ``penalty`` per
 column, and no better than 0 unless the training part improves too); the audit takes off what
-the same family scores on the nominal model's twin (``monitor.audit.audit._twin``), and
+the same family scores on the nominal model's twin (``monitor.audit.equations._twin``), and
 ``monitor.audit.decide`` says ``unexplained`` when one scores above its ``PROBE``.
 """
 

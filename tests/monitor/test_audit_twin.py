@@ -1,4 +1,4 @@
-"""The nominal model's twin (``monitor.audit.audit._twin``): what a candidate scores on a record
+"""The nominal model's twin (``monitor.audit.equations._twin``): what a candidate scores on a record
 that holds no effect, but this rig's motion at this sample rate, is no evidence. Records from
 ``hydromon.tools.audit_sweep._record`` (``--rigs`` tuning base 13100000)."""
 
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from hydromon.tools.audit_sweep import RIG_SEED, _drawn, _record, _rig_cases
 from monitor.audit import AuditOptions, audit
-from monitor.audit.audit import TWIN_SEED, _twin
+from monitor.audit.equations import TWIN_SEED, _twin
 
 RIGS = 13_100_000 + RIG_SEED
 
@@ -63,7 +63,7 @@ def test_a_nominal_free_run_that_strays_from_the_record_has_no_twin():
     """A 4000 N load offset on a noise-free multisine record at fault-grade health (held-out base
     12300000, main list record 164): the nominal model's free run strays to 2.6 times x1's spread,
     and a twin of it scored the offset at 11.6, taking the name off it."""
-    from monitor.audit.audit import TWIN_FIT
+    from monitor.audit.equations import TWIN_FIT
     from monitor.audit.freerun import mean_nrmse
 
     s, cfg = _record("one", {"load_offset": 4000.0},
