@@ -39,6 +39,7 @@ at these speeds) and barely earns its place, ``confident`` is False and ``note``
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
@@ -119,19 +120,17 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         return free_run(s, cfg, params, Effects(**effect), v0=float(sig.vl[0]), fallback=p_nom)
 
     fit_at = eq.fit_at
-    twins: list = []  # the nominal model's twin's equations, built when first asked
-
+    @functools.cache  # built when first asked, once per audit
     def twin_equations():
         """The nominal model's twin's equations (``_twin``), or None: the nominal free run
         diverged or strays from the record (``TWIN_FIT``), or the twin's equations cannot be
         fitted (a twin that stays at rest, say)."""
-        if not twins:
-            try:
-                twins.append(None if nominal_diverged or not mean_nrmse(fr_nom) <= TWIN_FIT else
-                             _Equations(_twin(s, sim_nom, sig.sigma), cfg, opt.train_fraction))
-            except (ValueError, np.linalg.LinAlgError):
-                twins.append(None)
-        return twins[0]
+        if nominal_diverged or not mean_nrmse(fr_nom) <= TWIN_FIT:
+            return None
+        try:
+            return _Equations(_twin(s, sim_nom, sig.sigma), cfg, opt.train_fraction)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
 
     def twin_score(cand, value) -> float:
         """What ``cand`` at ``value`` scores on the nominal model's twin, at least 0 (0: no
