@@ -65,9 +65,11 @@ def summary(result) -> str:
         lines.append(f"verdict: {result.words}")
     if result.note and result.note != result.words:
         lines.append(f"note: {result.note}")
-    lines.append(f"{'candidate':22s} {'score':>9s} {'free-run gain':>14s}")
+    # score: held-out evidence left once the twin's share (what the candidate scores on the
+    # nominal model's twin, a record without any effect) is taken off
+    lines.append(f"{'candidate':22s} {'score':>9s} {'twin':>6s} {'free-run gain':>14s}")
     for c in result.candidates:
-        lines.append(f"{c.name:22s} {c.score:9.1f} {c.gain:14.2f}")
+        lines.append(f"{c.name:22s} {c.score:9.2f} {c.twin:6.2f} {c.gain:14.2f}")
     for name, why in result.unfitted.items():
         lines.append(f"{name:22s} not fitted: {why}")
     g = result.gain

@@ -50,6 +50,13 @@ def test_a_clean_record_of_a_fast_rig_is_not_named_a_hump_its_twin_shows_as_well
     st_ = next(c for c in res.candidates if c.name == "stribeck_friction")
     assert st_.twin > 0.6 and st_.score < 0.6, (st_.score, st_.twin)
     assert "nominal model's twin" in res.note
+    from hydromon.report.audit import summary
+
+    text = summary(res)  # the terminal shows what the twin took off, beside the score left
+    assert next(line for line in text.splitlines() if line.startswith("candidate")).split()[:3] == [
+        "candidate", "score", "twin"]
+    row = next(line.split() for line in text.splitlines() if line.startswith("stribeck_friction "))
+    assert row[1:3] == [f"{st_.score:.2f}", f"{st_.twin:.2f}"], row
 
 
 def test_a_hump_on_a_rig_of_its_own_is_named_beside_its_twin():
