@@ -132,6 +132,21 @@ def test_a_residual_share_that_follows_no_measured_signal_is_not_called_structur
     assert _structure_words({"chamber": {"share": 0.5 * STRUCTURE["chamber"], "like": "velocity", "r": 0.9}}) == ""
 
 
+def test_a_residual_larger_than_its_equation_s_variance_is_said_in_times_not_percent():
+    """Entrained air at realistic noise in the fault band leaves the nominal chamber equation a
+    residual beyond the sensor noise 8-54 times the variance of its left side: "4881 % of its
+    variance unexplained" reads as nonsense; a multiple with what it means does not."""
+    from monitor.audit.decide import _structure_words
+
+    said = _structure_words({"chamber": {"share": 48.81, "like": "spool position", "r": -0.33}})
+    assert said == ("the chamber equation leaves a held-out residual 48.8 times the variance of its left side "
+                    "(beyond the sensor noise): the model predicts it worse than the left side's mean would, "
+                    "correlated with spool position (r = -0.33)"), said
+    assert "%" not in said
+    said = _structure_words({"force": {"share": 0.45, "like": "velocity", "r": -0.95}})
+    assert said == "the force equation leaves 45 % of its variance unexplained, correlated with velocity (r = -0.95)"
+
+
 def test_an_extension_whose_free_run_errs_far_more_than_the_nominal_is_not_named_and_a_genuine_sag_still_is():
     from monitor.audit.decide import GAIN_FLOOR
 
