@@ -32,7 +32,7 @@ line, `hydromon COMMAND: error: ...`, on stderr. Exit status:
 | status | meaning |
 | --- | --- |
 | 0 | done; for the commands that give a verdict (`evaluate`, `audit`, `watch --once`): every rig graded, and the grade can be trusted (status `ok`). `replay --direct` exits 0 once it replayed: its output is the verdicts, each with its status |
-| 1 | graded but not to be trusted, or not graded: a rig's status is `bad-input`, `uncalibrated` (no ranges made for its constants), `stale`, `converging` or `commissioning`; `audit`: the record does not obey the model; `watch --once`: no monitor answered. Also: the work ran but did not succeed: the bus could not be opened, the system refused (disk full, permission), `recover` left messages out, a bus `replay` was cut short |
+| 1 | graded but not to be trusted, or not graded: a rig's status is `bad-input`, `uncalibrated` (no ranges made for its constants), `stale`, `converging` or `commissioning`; `audit`: the record does not obey the model, or a rig of a recording could not be audited (its row says why); `watch --once`: no monitor answered. Also: the work ran but did not succeed: the bus could not be opened, the system refused (disk full, permission), `recover` left messages out, a bus `replay` was cut short |
 | 2 | a usage error: a bad option (with the closest one when it is a misspelling), or a file that cannot be read as what it should be; nothing was started |
 | 130 | stopped by Ctrl-C before the command finished its own way |
 | 141 | the reader of stdout went away (`hydromon evaluate FILE --json \\| head -c 100`) |

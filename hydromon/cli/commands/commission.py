@@ -24,7 +24,7 @@ def add_arguments(parser) -> None:
                         help="the rig in good condition, 30 s or more of its usual motion: .mcap, or .csv "
                              "(t,ug,x1,x3,x4,x5[,u], SI)")
     parser.add_argument("--out", required=True, metavar="RANGES.json",
-                        help="the ranges file to write (give it to evaluate/replay/audit --ranges, or put it into "
+                        help="the ranges file to write (give it to evaluate/replay --ranges, or put it into "
                              "the monitor's --ranges-dir as <rig-id>.json)")
     parser.add_argument("--rig", metavar="ID", help="which rig of a multi-rig MCAP recording")
     add_config_argument(parser)
