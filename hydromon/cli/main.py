@@ -117,11 +117,13 @@ on a cold cache says why it is slow."""
 
 
 def _compile_notice(args) -> threading.Timer | None:
-    """Started for a command whose module sets ``KERNELS`` (True, or a function of its
-    arguments) when numba's cache is empty:
-    its first kernel calls compile for about a minute, with nothing else to show for it."""
+    """Started for a command whose module sets ``KERNELS`` (True, the source directories whose
+    kernels it runs, or a function of its arguments giving either) when numba's cache holds
+    none of them: its first kernel calls compile for about a minute, with nothing else to show
+    for it."""
     kernels = getattr(args, "_kernels", False)
-    if not (kernels(args) if callable(kernels) else kernels) or not jitcache.is_cold():
+    kernels = kernels(args) if callable(kernels) else kernels
+    if not kernels or not jitcache.is_cold(dirs=jitcache._PACKAGES if kernels is True else tuple(kernels)):
         return None
     timer = threading.Timer(COMPILE_NOTICE_AFTER_S, lambda: print(
         f"hydromon {args.command}: first run of this version on this machine: compiling the numerical "

@@ -61,16 +61,19 @@ def numba_subdir(source_dir: Path) -> str:
     return f"{os.path.basename(path)}_{hashlib.sha1(path.encode()).hexdigest()}"
 
 
-def is_cold(root: Path = _ROOT) -> bool:
-    """True when numba's cache holds no compiled kernel yet for a package of this checkout
-    (``root``): the first run of this version from here, which compiles every kernel it calls
-    (about a minute). Kernels another checkout of the same sources compiled do not count:
+def is_cold(root: Path = _ROOT, dirs: tuple = _PACKAGES) -> bool:
+    """True when numba's cache holds no compiled kernel yet for one of the source directories
+    ``dirs`` (relative to the checkout ``root``; default: the packages' top directories): the
+    first run of this version from here, which compiles every kernel it calls (about a minute).
+    numba keeps a module's kernels under its own directory's name, so a command names the
+    directories whose kernels it runs (``hydromon audit``: monitor/audit and plant_sim, and
+    never monitor's own). Kernels another checkout of the same sources compiled do not count:
     numba keys them on their files' paths, so this one compiles its own."""
     cache = os.environ.get("NUMBA_CACHE_DIR")
     if not cache:
         return False  # numba caches beside the sources: we cannot tell cheaply
     try:
-        return not all(any((Path(cache) / numba_subdir(root / pkg)).glob("*.nbi")) for pkg in _PACKAGES)
+        return not all(any((Path(cache) / numba_subdir(root / d)).glob("*.nbi")) for d in dirs)
     except OSError:
         return False
 

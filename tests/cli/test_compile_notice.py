@@ -48,6 +48,26 @@ def test_is_cold_for_a_second_checkout_of_the_same_sources(tmp_path, monkeypatch
         str(clone / "monitor" / "pipeline.py"))
 
 
+def test_an_audit_is_cold_until_the_kernels_it_runs_are_cached(tmp_path, monkeypatch):
+    """The audit runs kernels of monitor/audit and plant_sim only, which numba caches under
+    those directories' names: with them cached it compiles nothing, though monitor's own
+    kernels never were (the notice came on every audit)."""
+    from hydromon.cli.commands import audit
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(cli, "COMPILE_NOTICE_AFTER_S", 60.0)
+    args = cli.build_parser().parse_args(["audit", "x.csv"])
+    assert args._kernels == audit.KERNELS
+    timer = cli._compile_notice(args)
+    assert timer is not None
+    timer.cancel()
+    for d in audit.KERNELS:
+        assert any("@njit" in f.read_text() for f in (_jitcache._ROOT / d).glob("*.py")), d
+        _compiled(tmp_path, _jitcache._ROOT, d)
+    assert cli._compile_notice(args) is None
+    assert _jitcache.is_cold()  # monitor's own kernels are still not compiled
+
+
 def _args(command, kernels, **kw):
     return argparse.Namespace(command=command, _kernels=kernels, **kw)
 
@@ -57,7 +77,7 @@ def _args(command, kernels, **kw):
     (lambda a: a.direct, True, True),
 ])
 def test_notice_only_for_a_kernel_command_on_a_cold_cache(monkeypatch, capsys, kernels, cold, shown):
-    monkeypatch.setattr(_jitcache, "is_cold", lambda: cold)
+    monkeypatch.setattr(_jitcache, "is_cold", lambda **kw: cold)
     monkeypatch.setattr(cli, "COMPILE_NOTICE_AFTER_S", 0.0)
     timer = cli._compile_notice(_args("evaluate", kernels, direct=True))
     assert (timer is not None) == shown
@@ -67,7 +87,7 @@ def test_notice_only_for_a_kernel_command_on_a_cold_cache(monkeypatch, capsys, k
 
 
 def test_replay_without_direct_compiles_nothing(monkeypatch):
-    monkeypatch.setattr(_jitcache, "is_cold", lambda: True)
+    monkeypatch.setattr(_jitcache, "is_cold", lambda **kw: True)
     args = cli.build_parser().parse_args(["replay", "x.mcap"])
     assert cli._compile_notice(args) is None
     args = cli.build_parser().parse_args(["replay", "x.mcap", "--direct"])
@@ -85,7 +105,7 @@ def test_every_command_that_runs_kernels_declares_it():
 
 
 def test_the_notice_is_cancelled_when_the_command_ends(monkeypatch, tmp_path, capsys):
-    monkeypatch.setattr(_jitcache, "is_cold", lambda: True)
+    monkeypatch.setattr(_jitcache, "is_cold", lambda **kw: True)
     monkeypatch.setattr(cli, "COMPILE_NOTICE_AFTER_S", 30.0)
     code = cli.main(["evaluate", str(tmp_path / "missing.csv")])  # fails at once
     assert code == 2

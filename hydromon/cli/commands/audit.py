@@ -13,7 +13,9 @@ from hydromon.cli.rigconfig import add_config_argument, config_from_args, has_re
 
 NAME = "audit"
 HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named model extension explains it"
-KERNELS = True  # compiled numerical kernels: a cold cache compiles them first (hydromon.cli.main)
+# compiled numerical kernels (a cold cache compiles them first: hydromon.cli.main), in these
+# source directories only: numba caches them under each one's name
+KERNELS = ("monitor/audit", "plant_sim")
 EXAMPLES = (
     'hydromon audit db.csv --report audit-report',
     'hydromon audit tour.mcap --json   # every rig of a recording',
