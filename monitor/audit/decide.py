@@ -57,8 +57,8 @@ from .candidates import StribeckFriction
 from .hump import HUMP_GAIN, HUMP_TRAIN, V_NOISE_MAX, V_S_MIN, HumpEvidence
 from .reach import REACH_GRID, REACH_V_S
 from .shadow import offset_shadow
-from .verdict import (EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, residual_shape,
-                      twin_words)
+from .verdict import (EQUATION_OF, READABLE, cause_words, impossible_params, param_shift_words, passed_over_words,
+                      residual_shape, share_words, twin_words)
 
 __all__ = ["Verdict", "decide", "STRUCTURE"]
 
@@ -217,7 +217,7 @@ def _hump_verdict(ev, stribeck, need: float, p_nom: dict, shadow: dict) -> Verdi
     passed over as the hump's shadow (``monitor.audit.shadow``)."""
     eq = (f"on the equations the hump is not told from Coulomb plus viscous friction (held-out score "
           f"{stribeck.score:.2f} <= {need:g})" if stribeck.score <= need
-          else f"on the equations the hump was passed over ({_passed_over_words(stribeck)})")
+          else f"on the equations the hump was passed over ({passed_over_words(stribeck)})")
     note = f"named from its free run: {eq}, but {_hump_words(ev)}" + "".join(f"; {w}" for w in shadow.values())
     confident = ev.gain > 2 * HUMP_GAIN
     shift = param_shift_words(p_nom, ev.params)
@@ -240,39 +240,10 @@ def _reach_words(f_reach: float) -> str:
             "would have been named")
 
 
-def _passed_over_words(c) -> str:
-    """Why a candidate that scored above its threshold was not named."""
-    head = f"{c.name} scores {c.score:.2f}"
-    if not c.plausible and c.effect.get("stribeck_v_s", 0.0) > StribeckFriction.V_S_MAX:
-        return (f"{head}, but its simulated hump fades over {1e3 * c.effect['stribeck_v_s']:.0f} mm/s: a friction "
-                f"level, not a breakaway hump (at most {1e3 * StribeckFriction.V_S_MAX:.0f} mm/s)")
-    if not c.plausible and "stribeck_v_s" in c.effect:
-        return (f"{head}, but its simulated hump ({c.effect['stribeck_F_s']:.0f} N fading over "
-                f"{1e3 * c.effect['stribeck_v_s']:.1f} mm/s) is no breakaway hump (F_s > 0, v_s of at least "
-                f"{1e3 * StribeckFriction.V_S_MIN:g} mm/s)")
-    if not c.plausible:
-        return f"{head}, but its simulated extension is not the effect it stands for"
-    if c.gain == -math.inf:
-        return f"{head}, but its free run diverges"
-    # the one reason left outside an impossible nominal fit (which is answered before this)
-    return f"{head}, but its free run errs {1.0 - c.gain:.1f} times as much as the nominal model's"
-
-
 def _structure_words(struct: dict) -> str:
     bad = [(g, s) for g, s in struct.items() if s["share"] > STRUCTURE[g] and abs(s["r"]) >= STRUCTURE_R]
-    return "; ".join(f"the {g} equation {_share_words(s['share'])}, correlated with {s['like']} (r = {s['r']:+.2f})"
+    return "; ".join(f"the {g} equation {share_words(s['share'])}, correlated with {s['like']} (r = {s['r']:+.2f})"
                      for g, s in bad)
-
-
-def _share_words(share: float) -> str:
-    """A residual share beyond noise of an equation's held-out left side [-], in words. Above 1
-    the model predicts the equation worse than its left side's mean would (the nominal chamber
-    equation of records with entrained air at realistic noise in the fault band: 8-54 times on
-    the held-out air ladders of 12300000 and 12500000), which a percentage hides."""
-    if share <= 1.0:
-        return f"leaves {100 * share:.0f} % of its variance unexplained"
-    return (f"leaves a held-out residual {share:.3g} times the variance of its left side (beyond the sensor "
-            "noise): the model predicts it worse than the left side's mean would")
 
 
 def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe=None, reach=None,
@@ -306,9 +277,10 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
             return Verdict("unexplained", (), False, note, note, struct, obeys=False)
         shape = _structure_words(struct)
         if shape:
-            note = (f"no candidate of the library explains the residual: {shape}"
-                    f" (best candidate {results[0].name} scores {results[0].score:.2f} <= "
-                    f"{need[results[0].name]:g})")
+            best = results[0]
+            said = (shadow.get(best.name) or passed_over_words(best) if best.score > need[best.name]
+                    else f"best candidate {best.name} scores {best.score:.2f} <= {need[best.name]:g}")
+            note = f"no candidate of the library explains the residual: {shape} ({said})"
             return Verdict("unexplained", (), True, note, note, struct)
         probed = _probed(probe, (), sig, split, results)
         if probed is not None:
@@ -319,7 +291,7 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
             return _hump_verdict(ev, stribeck, need[stribeck.name], p_nom, shadow)
         passed = [c for c in results if c.score > need[c.name]]
         if passed:
-            note = "no extension earns its place: " + "; ".join(shadow.get(c.name) or _passed_over_words(c)
+            note = "no extension earns its place: " + "; ".join(shadow.get(c.name) or passed_over_words(c)
                                                                  for c in passed)
         else:
             best = results[0]

@@ -12,8 +12,10 @@ import math
 
 import numpy as np
 
+from .candidates import StribeckFriction
+
 __all__ = ["POSITIVE_AUDIT", "EQUATION_OF", "impossible_params", "residual_shape", "cause_words",
-           "param_shift_words", "twin_words"]
+           "param_shift_words", "twin_words", "passed_over_words", "share_words"]
 
 # Positive on every rig and pinned by the chamber and valve equations (the force balance's m
 # and B + f_v are left out: an unmodelled load offset, one of the effects the audit names, drives
@@ -99,3 +101,34 @@ def twin_words(c) -> str:
     return (f"{c.name} scores {c.score + c.twin:.2f} on the equations, but {c.twin:.2f} of it on the nominal model's "
             "twin as well (its free run with this record's noise, which holds no effect): what the equations make "
             "of this rig's motion at this sample rate, not evidence of it")
+
+
+def passed_over_words(c) -> str:
+    """Why a candidate that scored above its threshold was not named."""
+    head = f"{c.name} scores {c.score:.2f}"
+    if not c.plausible and c.effect.get("stribeck_v_s", 0.0) > StribeckFriction.V_S_MAX:
+        return (f"{head}, but its simulated hump fades over {1e3 * c.effect['stribeck_v_s']:.0f} mm/s: a friction "
+                f"level, not a breakaway hump (at most {1e3 * StribeckFriction.V_S_MAX:.0f} mm/s)")
+    if not c.plausible and "stribeck_v_s" in c.effect:
+        return (f"{head}, but its simulated hump ({c.effect['stribeck_F_s']:.0f} N fading over "
+                f"{1e3 * c.effect['stribeck_v_s']:.1f} mm/s) is no breakaway hump (F_s > 0, v_s of at least "
+                f"{1e3 * StribeckFriction.V_S_MIN:g} mm/s)")
+    if not c.plausible:
+        return f"{head}, but its simulated extension is not the effect it stands for"
+    if c.gain == -math.inf:
+        return f"{head}, but its free run diverges"
+    if math.isnan(c.gain):  # the nominal free run's error is not finite (a channel that never moves)
+        return f"{head}, but its free run cannot be compared with the nominal model's, whose error is not finite"
+    # the one reason left outside an impossible nominal fit (which is answered before this)
+    return f"{head}, but its free run errs {1.0 - c.gain:.1f} times as much as the nominal model's"
+
+
+def share_words(share: float) -> str:
+    """A residual share beyond noise of an equation's held-out left side [-], in words. Above 1
+    the model predicts the equation worse than its left side's mean would (the nominal chamber
+    equation of records with entrained air at realistic noise in the fault band: 8-54 times on
+    the held-out air ladders of 12300000 and 12500000), which a percentage hides."""
+    if share <= 1.0:
+        return f"leaves {100 * share:.0f} % of its variance unexplained"
+    return (f"leaves a held-out residual {share:.3g} times the variance of its left side (beyond the sensor "
+            "noise): the model predicts it worse than the left side's mean would")

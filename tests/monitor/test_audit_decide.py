@@ -52,3 +52,25 @@ def test_a_tie_that_no_free_run_breaks_names_nothing_and_says_so():
 def test_a_winner_is_named_where_its_free_run_breaks_the_tie_or_there_is_none(runner_up, gain, named, confident):
     got = _decide(_ranked(("load_offset", 1.0, gain), ("entrained_air", runner_up, 0.02)))
     assert (got.cause, got.confident) == (named, confident), (got.cause, got.note)
+
+
+def test_a_candidate_passed_over_for_its_free_run_is_said_so_not_said_to_score_below_its_threshold():
+    """A rig held still (a constant command: the steps profile at 2.5 V to 2.5 V) leaves the
+    valve equation a residual that follows the spool; the best candidate scores 10 and is
+    passed over because its free run diverges. The note said "scores 10.02 <= 0.15"."""
+    from monitor.audit import audit
+
+    s, cfg = _record("clean", {}, "steps:low=2.5,high=2.5", 0.3, "realistic", 2)
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    best = res.candidates[0]
+    assert res.cause == "unexplained" and best.score > 0.15, (res.cause, res.note)
+    assert f"({best.name} scores {best.score:.2f}, but its free run diverges)" in res.note, res.note
+    assert "<=" not in res.note, res.note
+
+
+def test_a_free_run_that_cannot_be_compared_is_said_so():
+    from monitor.audit.verdict import passed_over_words
+
+    c = _ranked(("load_offset", 7.75, float("nan")))[0]
+    assert passed_over_words(c) == ("load_offset scores 7.75, but its free run cannot be compared with the "
+                                     "nominal model's, whose error is not finite")
