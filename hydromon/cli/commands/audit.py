@@ -72,6 +72,8 @@ def load(path: str, rig: str | None = None, config=None):
         raise FileNotFoundError(f"{name}: no such file")
     if p.is_dir():
         raise ValueError(f"{name}: is a directory; give a .csv or .mcap file")
+    if not p.is_file():  # a device or a pipe: /dev/zero would be read until memory runs out
+        raise ValueError(f"{name}: is not a regular file (a device or a pipe); give a .csv or .mcap file")
     rec = load_recording(p, rig=rig, config=config)
     csv = p.suffix.lower() == ".csv"
     stretch = _stretch(rec, csv)
@@ -146,7 +148,14 @@ def _audit(args, rig, config, options):
     from monitor.audit import audit
 
     config, samples, stretch = load(args.file, rig, config)
-    return audit(samples, config, options, progress=Progress()), stretch
+    what = args.file + (f" rig {rig!r}" if rig else "")
+    try:
+        return audit(samples, config, options, progress=Progress()), stretch
+    except np.linalg.LinAlgError as exc:  # a ValueError too, but numpy's own words say nothing of the record
+        raise ValueError(f"{what}: the audit's equations cannot be solved on this record ({exc}): two channels "
+                         "that move as one (x3 = x4?), or values written with too few decimals") from None
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from None
 
 
 def _one(args, rig, config, options) -> int:

@@ -1,0 +1,58 @@
+"""``hydromon audit`` refuses a record it cannot fit, or a path it must not read, with one line
+naming the file and why (exit status 2)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from hydromon.cli.main import main
+
+
+def _moving_csv(path, mutate=lambda a: a, rows=None):
+    """A 5 s clean record of the reference rig as a CSV (t,ug,x1,x3,x4,x5), ``mutate``d."""
+    from hydromon.tools.audit_sweep import _record
+
+    s, cfg = _record("clean", {}, "paper-var", 0.3, "realistic", 5, duration=5.0)
+    a = mutate(np.column_stack([cfg.h * np.arange(len(s)), s]))[:rows]
+    path.write_text("t,ug,x1,x3,x4,x5\n" + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in a))
+    return path
+
+
+def _set(col, value):
+    def mutate(a):
+        a[:, col] = value if not callable(value) else value(a)
+        return a
+    return mutate
+
+
+@pytest.mark.parametrize("mutate, rows, needle", [
+    (_set(5, 0.0), None, "rec.csv: x5 is 0 in every sample: a sensor that is not logged, stuck"),
+    (_set(3, 4e6), None, "rec.csv: x3 is 4e+06 in every sample"),
+    (_set(4, lambda a: a[:, 3]), None, "rec.csv: the audit's equations cannot be solved on this record"),
+    (lambda a: a, 100, "rec.csv: need at least 250 samples, got 100"),
+])
+def test_audit_of_a_record_it_cannot_fit_names_the_file_and_why(tmp_path, capsys, mutate, rows, needle):
+    """A dead sensor, two pressures that read as one or too short a record: one line naming the
+    file, not numpy's "Singular matrix" or an equation's row count alone."""
+    _moving_csv(tmp_path / "rec.csv", mutate, rows)
+    assert main(["audit", str(tmp_path / "rec.csv")]) == 2
+    cap = capsys.readouterr()
+    # the line before it says the paper's rig constants are used (a CSV carries none)
+    assert cap.out == "" and "the paper's rig constants" in cap.err.splitlines()[0], cap.err
+    err = cap.err.splitlines()[-1]
+    assert err.startswith("hydromon audit: error: ") and needle in err and err.count("rec.csv") == 1, err
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_audit_refuses_a_pipe_or_a_device_before_reading_it(tmp_path, capsys):
+    fifo = tmp_path / "f.csv"
+    os.mkfifo(fifo)  # with no writer: reading it would block forever
+    (tmp_path / "zero.csv").symlink_to("/dev/zero")  # read to the end, it never ends
+    for path in (fifo, tmp_path / "zero.csv"):
+        assert main(["audit", str(path)]) == 2
+        cap = capsys.readouterr()
+        assert cap.out == "" and cap.err == (f"hydromon audit: error: {path}: is not a regular file (a device or a "
+                                             "pipe); give a .csv or .mcap file\n"), cap.err
