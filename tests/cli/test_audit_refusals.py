@@ -56,3 +56,19 @@ def test_audit_refuses_a_pipe_or_a_device_before_reading_it(tmp_path, capsys):
         cap = capsys.readouterr()
         assert cap.out == "" and cap.err == (f"hydromon audit: error: {path}: is not a regular file (a device or a "
                                              "pipe); give a .csv or .mcap file\n"), cap.err
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--report", ""], "--report '': give the directory to write the report into"),
+    (["--train-fraction", "0.1"], "--train-fraction 0.1: train_fraction must lie in [0.2, 0.9]"),
+])
+def test_audit_refuses_an_empty_report_directory_and_a_fraction_outside_its_range(tmp_path, capsys, argv, needle):
+    """``--report ''`` wrote no report and said nothing; the fraction's range is in --help too."""
+    path = _moving_csv(tmp_path / "rec.csv")
+    assert main(["audit", str(path), *argv]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == "" and cap.err.count("\n") == 1, cap.err
+    assert cap.err.startswith(f"hydromon audit: error: {needle}"), cap.err
+    with pytest.raises(SystemExit):
+        main(["audit", "--help"])
+    assert "(0.2-0.9; default 0.7)" in capsys.readouterr().out

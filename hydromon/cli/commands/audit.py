@@ -31,7 +31,7 @@ def add_arguments(parser) -> None:
                         "several rigs, one per rig id)")
     parser.add_argument("--report", metavar="DIR", help="write audit.md and PNG plots into DIR")
     parser.add_argument("--train-fraction", type=float, default=0.7,
-                        help="leading fraction of the record used for fitting (default 0.7)")
+                        help="leading fraction of the record used for fitting (0.2-0.9; default 0.7)")
 
 
 def read_csv(stream, name: str = "<csv>") -> tuple[np.ndarray, np.ndarray]:
@@ -133,6 +133,8 @@ def run(args) -> int:
         options = AuditOptions(train_fraction=args.train_fraction)
     except ValueError as exc:
         raise ValueError(f"--train-fraction {args.train_fraction!r}: {exc}") from None
+    if args.report is not None and not args.report.strip():
+        raise ValueError("--report '': give the directory to write the report into")
     if args.report:
         writable_dir("--report", args.report)
     config = config_from_args(args)
