@@ -123,7 +123,7 @@ def _compile_notice(args) -> threading.Timer | None:
     for it."""
     kernels = getattr(args, "_kernels", False)
     kernels = kernels(args) if callable(kernels) else kernels
-    if not kernels or not jitcache.is_cold(dirs=jitcache._PACKAGES if kernels is True else tuple(kernels)):
+    if not kernels or not jitcache.is_cold(dirs=None if kernels is True else tuple(kernels)):
         return None
     timer = threading.Timer(COMPILE_NOTICE_AFTER_S, lambda: print(
         f"hydromon {args.command}: first run of this version on this machine: compiling the numerical "

@@ -61,9 +61,9 @@ def numba_subdir(source_dir: Path) -> str:
     return f"{os.path.basename(path)}_{hashlib.sha1(path.encode()).hexdigest()}"
 
 
-def is_cold(root: Path = _ROOT, dirs: tuple = _PACKAGES) -> bool:
+def is_cold(root: Path = _ROOT, dirs: tuple | None = None) -> bool:
     """True when numba's cache holds no compiled kernel yet for one of the source directories
-    ``dirs`` (relative to the checkout ``root``; default: the packages' top directories): the
+    ``dirs`` (relative to the checkout ``root``; None: the packages' top directories): the
     first run of this version from here, which compiles every kernel it calls (about a minute).
     numba keeps a module's kernels under its own directory's name, so a command names the
     directories whose kernels it runs (``hydromon audit``: monitor/audit and plant_sim, and
@@ -73,7 +73,7 @@ def is_cold(root: Path = _ROOT, dirs: tuple = _PACKAGES) -> bool:
     if not cache:
         return False  # numba caches beside the sources: we cannot tell cheaply
     try:
-        return not all(any((Path(cache) / numba_subdir(root / d)).glob("*.nbi")) for d in dirs)
+        return not all(any((Path(cache) / numba_subdir(root / d)).glob("*.nbi")) for d in dirs or _PACKAGES)
     except OSError:
         return False
 

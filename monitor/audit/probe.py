@@ -32,10 +32,10 @@ in two families: a constant and the chamber pressure forces' sum A1 x3 + A2 x4 (
 side A1 x3 - A2 x4 it spans either chamber's pressure force: a pressure sensor's gain error; one
 pressure direction only, or the left side itself would be a regressor), and sign(v) times the
 pressure difference across the piston, A1 |x3 - x4| (a friction that grows with the pressure that
-presses the piston seal on the bore). The friction family's pressure term is one column, not one per chamber:
-x3 + x4 stays near the supply pressure, so sign(v) x3 and sign(v) x4 are nearly collinear with
-Coulomb friction's sign(v), and fitted apart they extrapolate badly to the held-out part (a seal
-friction on the paper's sine scored -0.05 as two columns, 1.5-2.3 as one)."""
+presses the piston seal on the bore). The friction family's pressure term is one column, not
+one per chamber: x3 + x4 stays near the supply pressure, so sign(v) x3 and sign(v) x4 are nearly
+collinear with Coulomb friction's sign(v), and fitted apart they extrapolate badly to the
+held-out part (a seal friction on the paper's sine scored -0.05 as two columns, 1.5-2.3 as one)."""
 
 
 def _force_mse(fit, split: int, floors: tuple[dict, dict]) -> tuple[float, float]:
