@@ -1,7 +1,7 @@
 """The audit's sweep: every effect on every input profile, health band and noise level.
 
 ``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]
-[--fixed] [--duration S] [--only NAME | --ladder NAME | --clean N [--noise LIST] | --pairs N | --rigs N]``
+[--fixed] [--duration S] [--screen] [--only NAME | --ladder NAME | --clean N [--noise LIST] | --pairs N | --rigs N]``
 prints the tables of ``docs/audit.md``. Every record is 20 s (``--duration``) at 100 Hz from ``plant_sim``; its seed is
 ``BASE[seeds] + its index`` in the fixed list (``hydromon.tools.audit_cases``; the ``tune`` seeds were used to set the
 audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen). The seed
@@ -24,6 +24,10 @@ defaults at its band's centre.
   pressure sensor (the force equation fails), and a piston seal friction loaded by the
   differential pressure, c_p |p1 - p2| sign(v) with c_p = 1e-4 m^2 (``Effects.seal_friction``:
   the force equation fails). The right answer is ``unexplained``.
+
+``--screen`` audits nothing: it prints how far the chosen records stand from the audit's refusals of a
+glitch and of a rig held at one command (``monitor.audit.auditable``): the largest excursion ratio of
+each measured channel and the smallest command of each part, each with its record.
 
 A record counts as right when the audit names exactly its effect ("none" for clean records;
 both effects, in any order, for a pair). The last line times one full audit of a 60 s record
@@ -81,6 +85,45 @@ def _audit_one(args):
     return i, named, _truth(kind, effects), res.note, drawn
 
 
+def _screen_one(args):
+    from monitor.audit.auditable import excitation_ratios, glitch_span, largest_excursion
+    from monitor.audit.result import AuditOptions
+
+    i, case, seed, fixed, duration = args
+    kind, effects, profile, severity, noise, step = case
+    if not fixed:
+        profile, severity = _drawn(profile, severity, seed)
+    s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
+    excursions = [largest_excursion(s[:, k], glitch_span(cfg.h)) for k in range(1, 5)]
+    split = int(AuditOptions().train_fraction * len(s))
+    return (i, [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split),
+            f"{profile} severity {severity}")
+
+
+def _print_screen(cases, screened, wall):
+    """The largest excursion ratio per channel and the smallest command per part over ``screened``
+    (index -> (excursions, excitation ratios per part, drawn)), each with its record."""
+    from monitor.audit.auditable import EXCITATION, GLITCH, held
+
+    def rec(i):
+        kind, effects, _, _, noise, _ = cases[i]
+        return f"record {i} ({kind} {effects or ''} {screened[i][2]}, noise {noise})".replace("  ", " ")
+
+    print(f"{len(screened)} records screened in {wall:.0f} s (nothing audited)")
+    for k, name in enumerate(("x1", "x3", "x4", "x5")):
+        i = max(screened, key=lambda j: screened[j][0][k])
+        print(f"  {name}: largest excursion {screened[i][0][k]:.1f} times its 99th-percentile step (refused above "
+              f"{GLITCH:g}): {rec(i)}")
+    for k, part in enumerate(("fitting", "held-out")):
+        i = min(screened, key=lambda j: screened[j][1][k][0])
+        asked, moved = screened[i][1][k]
+        print(f"  {part} part: smallest command {asked:.1f} times the position noise, x1 moving {moved:.1f} times it "
+              f"(held, so refused, at a command of at most 1, or of at most {EXCITATION:g} with x1 at most "
+              f"{EXCITATION:g}): {rec(i)}")
+    refused = sum(max(g) > GLITCH or any(held(r) for r in c) for g, c, _ in screened.values())
+    print(f"  refused: {refused} of {len(screened)}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", choices=tuple(BASE), default="heldout")
@@ -106,6 +149,9 @@ def main(argv=None):
                          f"each sensor's span; default {','.join(CLEAN_NOISES)})")
     ap.add_argument("--fixed", action="store_true",
                     help="every record on its profile's default parameters at its band's centre (no draw)")
+    ap.add_argument("--screen", action="store_true",
+                    help="audit nothing: print how far the records stand from the refusals of a glitch and of a rig "
+                         "held at one command")
     ap.add_argument("--duration", type=float, default=DURATION, metavar="S",
                     help=f"each record's length [s] (default {DURATION:g}; at least 5)")
     args = ap.parse_args(argv)
@@ -143,6 +189,14 @@ def main(argv=None):
     t0 = time.perf_counter()
     results = {}
     pool = ProcessPoolExecutor(args.jobs) if args.jobs > 1 else None
+    if args.screen:
+        try:
+            screened = {i: rest for i, *rest in (pool.map(_screen_one, todo) if pool else map(_screen_one, todo))}
+        finally:
+            if pool is not None:
+                pool.shutdown()
+        _print_screen(cases, screened, time.perf_counter() - t0)
+        return
     try:
         it = pool.map(_audit_one, todo) if pool else map(_audit_one, todo)
         for i, named, truth, note, drawn in it:

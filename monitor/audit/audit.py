@@ -58,7 +58,7 @@ from .hump import hump_evidence
 from .probe import probe_fits
 from .reach import stribeck_reach
 from .result import AuditOptions, AuditResult, CandidateResult
-from .signals import require_live_channels
+from .auditable import require_auditable
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
 
@@ -102,7 +102,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     cfg = config or RigConfig()
     opt = options or AuditOptions()
     s = np.asarray(samples, dtype=float)
-    require_live_channels(s)
+    require_auditable(s, cfg.K_f, int(opt.train_fraction * len(s)), cfg.h)
     eq = _Equations(s, cfg, opt.train_fraction)
     sig, split, cache, nominal, p_nom, theta0 = eq.sig, eq.split, eq.cache, eq.nominal, eq.p_nom, eq.theta0
     floors, nom_tr, nom_te = eq.floors, eq.nom_tr, eq.nom_te

@@ -19,7 +19,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ..fourth_difference import CHI2_1_MEDIAN, D4_VARIANCE_GAIN
 
-__all__ = ["Signals", "signals", "require_live_channels", "SG_WINDOW", "FORCE_WINDOW", "MARGIN", "MIN_SAMPLES"]
+__all__ = ["Signals", "signals", "SG_WINDOW", "FORCE_WINDOW", "MARGIN", "MIN_SAMPLES"]
 
 SG_WINDOW = 31  # [samples] window of the chamber equations' filter L (odd)
 FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction acts near rest: keep it short)
@@ -144,21 +144,6 @@ def noise_at(x: np.ndarray, rows: np.ndarray) -> float:
     idx = np.asarray(rows, dtype=int) - 2
     idx = idx[(idx >= 0) & (idx < len(d4))]
     return float(_d4_sigma(d4[idx])) if len(idx) else math.nan
-
-
-def require_live_channels(samples: np.ndarray) -> None:
-    """Refuse (ValueError naming them) samples ``ug, x1, x3, x4, x5`` in which a measured channel
-    reads one value throughout: a sensor not logged, stuck, or written with too few decimals
-    leaves singular equations, or none to fit, where a moving rig's sensors all vary. A
-    constant command ug is a rig held still, and is taken."""
-    s = np.asarray(samples, dtype=float)
-    if s.ndim != 2 or s.shape[1] != 5 or not len(s) or not np.all(np.isfinite(s)):
-        return  # ``signals`` says what is wrong with these
-    flat = [(name, s[0, k]) for k, name in enumerate(("x1", "x3", "x4", "x5"), 1) if np.ptp(s[:, k]) == 0.0]
-    if flat:
-        raise ValueError(", ".join(f"{name} is {float(value):.6g}" for name, value in flat) + " in every sample: a "
-                         "sensor that is not logged, stuck, or written with too few decimals (the audit fits how the "
-                         "rig moves: every measured channel must vary)")
 
 
 def signals(samples: np.ndarray, h: float) -> Signals:

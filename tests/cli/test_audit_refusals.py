@@ -33,10 +33,13 @@ def _set(col, value):
     (_set(3, 4e6), None, "rec.csv: x3 is 4e+06 in every sample"),
     (_set(4, lambda a: a[:, 3]), None, "rec.csv: the audit's equations cannot be solved on this record"),
     (lambda a: a, 100, "rec.csv: need at least 250 samples, got 100"),
+    (lambda a: (a.__setitem__((300, 2), 1.0), a)[1], None, "rec.csv: x1 jumps "),
+    (_set(1, 2.5), None, "rec.csv: the rig is held at one command in the fitting part (t = 0.00-3.49 s)"),
 ])
 def test_audit_of_a_record_it_cannot_fit_names_the_file_and_why(tmp_path, capsys, mutate, rows, needle):
-    """A dead sensor, two pressures that read as one or too short a record: one line naming the
-    file, not numpy's "Singular matrix" or an equation's row count alone."""
+    """A dead sensor, two pressures that read as one, too short a record, a spike of x1 or a command
+    held at one value: one line naming the file, not numpy's "Singular matrix", an equation's row
+    count alone, or a cause the record cannot show."""
     _moving_csv(tmp_path / "rec.csv", mutate, rows)
     assert main(["audit", str(tmp_path / "rec.csv")]) == 2
     cap = capsys.readouterr()

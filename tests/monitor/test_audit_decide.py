@@ -55,17 +55,12 @@ def test_a_winner_is_named_where_its_free_run_breaks_the_tie_or_there_is_none(ru
 
 
 def test_a_candidate_passed_over_for_its_free_run_is_said_so_not_said_to_score_below_its_threshold():
-    """A rig held still (a constant command: the steps profile at 2.5 V to 2.5 V) leaves the
-    valve equation a residual that follows the spool; the best candidate scores 10 and is
-    passed over because its free run diverges. The note said "scores 10.02 <= 0.15"."""
-    from monitor.audit import audit
-
-    s, cfg = _record("clean", {}, "steps:low=2.5,high=2.5", 0.3, "realistic", 2)
-    res = audit(s, cfg, AuditOptions(free_run=False))
-    best = res.candidates[0]
-    assert res.cause == "unexplained" and best.score > 0.15, (res.cause, res.note)
-    assert f"({best.name} scores {best.score:.2f}, but its free run diverges)" in res.note, res.note
-    assert "<=" not in res.note, res.note
+    """A best candidate scoring 10 whose free run diverges is passed over, and the note says why,
+    not that it scores below its threshold ("scores 10.02 <= 0.15")."""
+    got = _decide(_ranked(("sensor_delay", 10.02, float("-inf")), ("load_offset", 0.05, 0.01)))
+    assert got.cause in ("none", "unexplained") and got.causes == (), (got.cause, got.note)
+    assert "sensor_delay scores 10.02, but its free run diverges" in got.note, got.note
+    assert "<=" not in got.note, got.note
 
 
 def test_a_free_run_that_cannot_be_compared_is_said_so():

@@ -1,0 +1,177 @@
+"""What a record must be for the audit to judge a model by it; a record that is not is refused.
+
+The audit fits the model's equations on the first part of a record and compares how models
+simulate the rest, so it needs every sensor alive, no sample off its course, and a command that
+moves the rig in both parts. Each ``require_*`` raises ValueError saying what is wrong, where in
+the record, and what to give instead; none changes the samples. Pure functions, SI units.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .signals import _d4_sigma
+
+__all__ = ["require_auditable", "require_live_channels", "require_no_glitch", "require_excitation", "find_glitch",
+           "largest_excursion", "excitation_ratios", "held", "glitch_span", "GLITCH", "GLITCH_SPAN", "EXCITATION"]
+
+CHANNELS = ("ug", "x1", "x3", "x4", "x5")
+# Both steps of a glitch exceed GLITCH times the channel's 99th-percentile step. Over 2052 simulated
+# records of the tuning sweeps (every profile, band, noise level, effect and rig size) no pair of
+# opposite steps within GLITCH_SPAN came above 14 times it; a one-sample spike of 1 m in x1, 900
+# MPa in x3 or 50 mm in x5 comes at 1600-25000 times it.
+GLITCH = 50.0
+GLITCH_SPAN = 2.0  # [s] the longest excursion read as a glitch (a dropout of the sensor's reading)
+# In each part the command's rms as a position (ug / K_f) must exceed the position sensor's noise rms,
+# and it or x1's rms EXCITATION times it (``held``); the tuning sweeps' commands reach 60 times it at
+# least, a rig held at one command 0 (x1 creeping there 5-13 times it).
+EXCITATION = 10.0
+_TOP = 20  # largest steps of a channel paired in the glitch search
+
+
+def require_live_channels(samples: np.ndarray) -> None:
+    """Refuse (ValueError naming them) samples ``ug, x1, x3, x4, x5`` in which a measured channel
+    reads one value throughout: a sensor not logged, stuck, or written with too few decimals
+    leaves singular equations, or none to fit, where a moving rig's sensors all vary."""
+    s = np.asarray(samples, dtype=float)
+    if s.ndim != 2 or s.shape[1] != 5 or not len(s) or not np.all(np.isfinite(s)):
+        return  # ``signals`` says what is wrong with these
+    flat = [(name, s[0, k]) for k, name in enumerate(CHANNELS[1:], 1) if np.ptp(s[:, k]) == 0.0]
+    if flat:
+        raise ValueError(", ".join(f"{name} is {float(value):.6g}" for name, value in flat) + " in every sample: a "
+                         "sensor that is not logged, stuck, or written with too few decimals (the audit fits how the "
+                         "rig moves: every measured channel must vary)")
+
+
+def largest_excursion(x: np.ndarray, span: int) -> tuple[int, int, float, float] | None:
+    """The largest excursion of ``x`` that leaves its course in one step and comes back in one
+    opposite step at most ``span`` samples later, among the channel's largest steps, measured by
+    the smaller of its two steps over the channel's 99th-percentile step (its smallest nonzero
+    step when 99 % of them are 0: a quantized sensor at rest); None when no two such steps are.
+
+    Returns (first sample off course, first sample back, the step off course [unit of x], the
+    smaller step over the scale [-]).
+    """
+    d = np.diff(np.asarray(x, dtype=float))
+    a = np.abs(d)
+    scale = float(np.quantile(a, 0.99)) if len(a) else 0.0
+    if scale == 0.0:
+        moving = a[a > 0]
+        if not len(moving):
+            return None
+        scale = float(moving.min())
+    top = np.argsort(-a)[:_TOP]
+    best = None
+    for i in top:
+        for j in top:
+            if 0 < j - i <= span and d[i] * d[j] < 0:
+                ratio = min(a[i], a[j]) / scale
+                if best is None or ratio > best[3]:
+                    best = (int(i) + 1, int(j) + 1, float(d[i]), float(ratio))
+    return best
+
+
+def find_glitch(x: np.ndarray, span: int) -> tuple[int, int, float, float] | None:
+    """``largest_excursion`` when both its steps exceed GLITCH times the scale, else None."""
+    g = largest_excursion(x, span)
+    return g if g is not None and g[3] > GLITCH else None
+
+
+def excitation_ratios(samples: np.ndarray, K_f: float, split: int) -> list[tuple[float, float]]:
+    """For the samples before ``split`` and from it: the command's rms as a position (ug / K_f
+    [V/m]) and x1's own rms, each over the position sensor's noise rms (x1's, from 4th
+    differences) [-]; 0 where the channel stays at one value, inf where x1 shows no noise. Both
+    are unit-free but for K_f, and x1's alone is free of it: a record with x1 in mm asks too little
+    motion of a rig that moves."""
+    s = np.asarray(samples, dtype=float)
+    noise = float(_d4_sigma(np.diff(s[:, 1], 4))) if len(s) > 4 else 0.0
+    out = []
+    for rows in (slice(0, split), slice(split, len(s))):
+        asked, moved = (0.0 if not len(x) or np.ptp(x) == 0.0 else float(np.std(x)) / k
+                        for x, k in ((s[rows, 0], K_f), (s[rows, 1], 1.0)))
+        out.append(tuple(r / noise if noise > 0 else math.inf if r > 0 else 0.0 for r in (asked, moved)))
+    return out
+
+
+def held(ratios: tuple[float, float]) -> bool:
+    """A part held at one command (``excitation_ratios``): its command asks for less motion than
+    the position noise, or for no more than EXCITATION times it while x1 moves no more either. A
+    piston settling or creeping under a held command moves, but the audit would compare only where
+    models come to rest; a small command under a piston that moves far more is a unit or K_f
+    error, which the audit's fit shows."""
+    asked, moved = ratios
+    return asked <= 1.0 or max(asked, moved) <= EXCITATION
+
+
+def glitch_span(h: float) -> int:
+    """GLITCH_SPAN in samples of period ``h`` [s]."""
+    return max(1, int(round(GLITCH_SPAN / h)))
+
+
+def _length(x: float) -> str:
+    """A length [m] in mm from 1 mm up, else in um."""
+    return f"{x * 1e3:.3g} mm" if abs(x) >= 1e-3 else f"{x * 1e6:.3g} um"
+
+
+def _size(name: str, step: float) -> str:
+    """A step of channel ``name`` in the unit a technician reads."""
+    if name in ("x3", "x4"):
+        return f"{step / 1e6:+.3g} MPa"
+    if name == "ug":
+        return f"{step:+.3g} V"
+    return ("+" if step > 0 else "") + _length(step)
+
+
+def require_no_glitch(samples: np.ndarray, h: float) -> None:
+    """Refuse (ValueError naming the channel, the samples and the times) samples ``ug, x1, x3, x4,
+    x5`` at period ``h`` [s] in which a measured channel leaves its course and comes back
+    (``find_glitch``): a spike or a dropout of the sensor's reading is fitted as if the rig had
+    moved that way, and a one-sample spike of x1 read as a 35 kN load offset."""
+    s = np.asarray(samples, dtype=float)
+    span = glitch_span(h)
+    for k, name in enumerate(CHANNELS[1:], 1):
+        g = find_glitch(s[:, k], span)
+        if g is None:
+            continue
+        off, back, step, ratio = g
+        where = (f"at sample {off} (t = {off * h:.2f} s)" if back == off + 1 else
+                 f"from sample {off} to {back - 1} (t = {off * h:.2f}-{(back - 1) * h:.2f} s)")
+        raise ValueError(f"{name} jumps {_size(name, step)} {where} and back, in steps {ratio:.0f} times larger than "
+                         f"99 % of its steps: a spike or dropout of the sensor, which the audit would fit as motion "
+                         f"of the rig; cut the record before or after it, or mend those samples")
+
+
+def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) -> None:
+    """Refuse (ValueError naming the part and its times) samples ``ug, x1, x3, x4, x5`` at period
+    ``h`` [s] held at one command (``held``) in the part that fits (before sample ``split``) or
+    in the part that scores (from it). A rig held at one command
+    tells models apart only by where each comes to rest, which a free run's held-out error then
+    reads as dynamics (a rig held still was named a 12-sample sensor delay)."""
+    s = np.asarray(samples, dtype=float)
+    noise = float(_d4_sigma(np.diff(s[:, 1], 4))) if len(s) > 4 else 0.0
+    for part, rows, ratios in zip(("fitting", "held-out"), (slice(0, split), slice(split, len(s))),
+                                  excitation_ratios(s, K_f, split)):
+        if held(ratios):
+            ug = s[rows, 0]
+            first, last = rows.indices(len(s))[:2]
+            says = (f"stays at {ug[0]:.6g} V" if np.ptp(ug) == 0.0 else
+                    f"varies {np.std(ug):.3g} V rms ({_length(np.std(ug) / K_f)} as a position, ug / K_f)")
+            raise ValueError(
+                f"the rig is held at one command in the {part} part (t = {first * h:.2f}-{(last - 1) * h:.2f} s): "
+                f"the command ug {says} and x1 moves {_length(np.std(s[rows, 1]))} rms, against a position "
+                f"sensor's noise of {_length(noise)} rms; models cannot be told apart by where they come to rest. "
+                f"Audit a record whose command varies in both parts (the "
+                f"first part fits, the rest scores; --train-fraction moves the split)")
+
+
+def require_auditable(samples: np.ndarray, K_f: float, split: int, h: float) -> None:
+    """Every check of this module, in the order a person would mend the record: a dead sensor,
+    a glitch, then too little excitation (arguments as ``require_excitation``)."""
+    require_live_channels(samples)
+    s = np.asarray(samples, dtype=float)
+    if s.ndim != 2 or s.shape[1] != 5 or len(s) < 5 or not np.all(np.isfinite(s)) or not (h > 0 and math.isfinite(h)):
+        return  # ``signals`` says what is wrong with these
+    require_no_glitch(s, h)
+    require_excitation(s, K_f, split, h)

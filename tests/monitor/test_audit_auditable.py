@@ -1,0 +1,142 @@
+"""What the audit refuses before it fits anything: a dead sensor, a glitch, a rig held at one command
+(``monitor.audit.auditable``). Each refusal says what, where and what to give instead; a
+moving rig's record of any profile, band and noise level is never refused."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from monitor.audit import audit
+from monitor.audit.auditable import (EXCITATION, GLITCH, excitation_ratios, find_glitch, largest_excursion,
+                                     require_auditable, require_excitation, require_live_channels, require_no_glitch)
+
+CHANNELS = ("ug", "x1", "x3", "x4", "x5")
+
+
+@lru_cache(maxsize=None)
+def _rec(profile="paper-var", noise="realistic", severity=0.3, kind="clean", seed=5, duration=10.0):
+    from hydromon.tools.audit_cases import _record
+
+    s, cfg = _record(kind, {}, profile, severity, noise, seed, duration=duration)
+    s.setflags(write=False)
+    return s, cfg
+
+
+def _require(s, cfg, fraction=0.7):
+    require_auditable(s, cfg.K_f, int(fraction * len(s)), cfg.h)
+
+
+@pytest.mark.parametrize("profile", ["paper-id", "paper-var", "steps", "multisine"])
+@pytest.mark.parametrize("noise", ["none", "realistic", "stress"])
+@pytest.mark.parametrize("severity, kind", [(0.05, "clean"), (0.95, "clean"), (0.5, "rig")])
+def test_a_moving_rig_of_any_profile_band_and_noise_level_is_taken(profile, noise, severity, kind):
+    s, cfg = _rec(profile, noise, severity, kind, seed=7)
+    _require(s, cfg)
+    for k in range(1, 5):
+        assert find_glitch(s[:, k], 200) is None, CHANNELS[k]
+    assert all(asked > EXCITATION for asked, _ in excitation_ratios(s, cfg.K_f, int(0.7 * len(s))))
+
+
+@settings(max_examples=40, deadline=None)
+@given(channel=st.integers(1, 4), at=st.integers(0, 999), length=st.integers(1, 150),
+       times=st.floats(80.0, 1e4), sign=st.sampled_from([-1.0, 1.0]))
+def test_a_spike_or_dropout_of_any_measured_channel_is_refused_where_it_is(channel, at, length, times, sign):
+    """A reading that leaves its course by ``times`` the largest step of the channel and comes back
+    up to 1.5 s later: refused, naming the channel and the first sample off course."""
+    s0, cfg = _rec()
+    s = np.array(s0)
+    length = min(length, len(s) - 1 - at)
+    if at == 0 or length < 1:
+        return  # an excursion must leave a course and come back to it inside the record
+    s[at:at + length, channel] += sign * times * np.abs(np.diff(s0[:, channel])).max()
+    with pytest.raises(ValueError, match=f"^{CHANNELS[channel]} jumps ") as err:
+        require_no_glitch(s, cfg.h)
+    assert f"at sample {at} " in str(err.value) or f"from sample {at} to {at + length - 1} " in str(err.value)
+    assert "cut the record before or after it, or mend those samples" in str(err.value)
+
+
+def test_a_glitch_is_measured_against_the_channel_s_own_steps():
+    """Both steps must exceed GLITCH times the 99th-percentile step; a quantized sensor at rest
+    toggling one count is measured against its count, not refused."""
+    x = np.sin(np.linspace(0.0, 20.0, 2000))
+    q = np.quantile(np.abs(np.diff(x)), 0.99)
+    for size, found in ((0.9 * GLITCH * q, False), (1.1 * GLITCH * q, True)):
+        y = x.copy()
+        y[700] += size
+        g = find_glitch(y, 200)
+        assert (g is not None) == found, size
+        if found:
+            assert g[:2] == (700, 701) and g[2] == pytest.approx(size + x[700] - x[699])
+    toggling = np.zeros(2000)
+    toggling[[100, 900, 1500]] = 1e-6  # one count of a 1 um encoder, 99 % of steps 0
+    assert find_glitch(toggling, 200) is None
+    toggling[1200] = 1e-3
+    assert find_glitch(toggling, 200)[:2] == (1200, 1201)
+    assert find_glitch(np.zeros(10), 200) is None and largest_excursion(np.zeros(10), 200) is None
+
+
+@pytest.mark.parametrize("noise", ["none", "realistic", "stress"])
+def test_a_rig_held_at_one_command_is_refused_for_the_part_that_fits(noise):
+    """A rig held still was named a 12-sample sensor delay, confident, by how the free runs came to
+    rest: the command must move the rig in both parts."""
+    s, cfg = _rec("steps:low=2.5,high=2.5", noise)
+    with pytest.raises(ValueError, match=r"^the rig is held at one command in the fitting part "
+                                         r"\(t = 0.00-6.99 s\): the command ug stays at 2.5 V"):
+        _require(s, cfg)
+    with pytest.raises(ValueError, match="held at one command in the fitting part"):
+        audit(s, cfg)
+
+
+def test_a_command_that_stops_in_the_held_out_part_is_refused_for_that_part():
+    s0, cfg = _rec()
+    s = np.array(s0)
+    s[600:, 0] = s[600, 0]  # the command holds from t = 6 s: the held-out part starts at 7 s
+    _require(s, cfg, fraction=0.5)  # a second of the held-out part moves
+    with pytest.raises(ValueError, match=r"held at one command in the held-out part \(t = 7.00-9.99 s\): the command "
+                                         r"ug stays at"):
+        _require(s, cfg)
+
+
+@settings(max_examples=40, deadline=None)
+@given(rms=st.floats(0.0, 3.0 * EXCITATION), fraction=st.floats(0.2, 0.9), moves=st.booleans())
+def test_a_part_is_held_when_its_command_asks_for_no_more_motion_than_the_noise(rms, fraction, moves):
+    """ug / K_f's rms over each part against x1's noise rms (1 um here): held at or below 1 time it;
+    up to EXCITATION times it only while x1 moves no more either (a small command under a piston
+    that moves 100 times its noise is x1 in other units, or another K_f: the fit shows that)."""
+    from monitor.audit.signals import _d4_sigma
+
+    rng = np.random.default_rng(3)
+    n, K_f, noise = 1000, 40.0, 1e-6
+    s = np.column_stack([np.zeros(n), rng.normal(0, noise, n), 4e6 + rng.normal(0, 1e3, n),
+                         7e6 + rng.normal(0, 1e3, n), rng.normal(0, 1e-6, n)])
+    if moves:
+        s[:, 1] += 100 * noise * np.sqrt(2) * np.sin(np.arange(n) * 0.05)
+    split = int(fraction * n)
+    s[:, 0] = rms * noise * K_f * np.where(np.arange(n) % 2, 1.0, -1.0)  # rms exactly rms * noise as a position
+    limit = (1.0 if moves else EXCITATION) * float(_d4_sigma(np.diff(s[:, 1], 4)))
+    if rms * noise > limit * 1.01:
+        require_excitation(s, K_f, split, 0.01)
+    elif rms * noise < limit * 0.99:
+        with pytest.raises(ValueError, match="held at one command in the fitting part"):
+            require_excitation(s, K_f, split, 0.01)
+
+
+@settings(max_examples=25, deadline=None)
+@given(dead=st.sets(st.sampled_from([1, 2, 3, 4]), min_size=1), value=st.floats(-1e7, 1e7), seed=st.integers(0, 999))
+def test_a_measured_channel_that_never_changes_is_refused_by_name(dead, value, seed):
+    """A sensor not logged or stuck reads one value throughout: the audit refuses the record and
+    names the channel(s) instead of failing on singular equations later."""
+    s = np.random.default_rng(seed).normal(size=(300, 5))
+    for k in dead:
+        s[:, k] = value
+    with pytest.raises(ValueError, match="in every sample: a sensor that is not logged") as err:
+        require_live_channels(s)
+    named = {k for k, name in enumerate(CHANNELS) if f"{name} is " in str(err.value)}
+    assert named == dead, str(err.value)
+    s[:, list(dead)] = np.random.default_rng(seed + 1).normal(size=(300, len(dead)))
+    require_live_channels(s)
