@@ -1,7 +1,8 @@
 """The audit's sweep: every effect on every input profile, health band and noise level.
 
-``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick]
-[--fixed] [--duration S] [--screen] [--only NAME | --ladder NAME | --clean N [--noise LIST] | --pairs N | --rigs N]``
+``python -m hydromon.tools.audit_sweep [--seeds tune|heldout] [--seed-base N] [--jobs N] [--quick] [--fixed]
+[--duration S] [--round SPEC] [--screen] [--only NAME | --ladder NAME | --clean N [--noise LIST] | --pairs N |
+--rigs N]``
 prints the tables of ``docs/audit.md``. Every record is 20 s (``--duration``) at 100 Hz from ``plant_sim``; its seed is
 ``BASE[seeds] + its index`` in the fixed list (``hydromon.tools.audit_cases``; the ``tune`` seeds were used to set the
 audit's thresholds, the ``heldout`` seeds were fixed before any result on them was seen). The seed
@@ -24,6 +25,9 @@ defaults at its band's centre.
   pressure sensor (the force equation fails), and a piston seal friction loaded by the
   differential pressure, c_p |p1 - p2| sign(v) with c_p = 1e-4 m^2 (``Effects.seal_friction``:
   the force equation fails). The right answer is ``unexplained``.
+
+``--round x1=1e-6,x5=5e-7,p=400,ug=1e-3`` writes every record's channels in whole steps of that size (SI; ``p`` is
+both pressures) before the audit sees them, as a logger of that resolution would.
 
 ``--screen`` audits nothing: it prints how far the chosen records stand from the audit's refusals of a
 glitch and of a rig held at one command (``monitor.audit.auditable``): the largest excursion ratio of
@@ -59,6 +63,8 @@ import argparse
 import time
 from concurrent.futures import ProcessPoolExecutor
 
+import numpy as np
+
 from .audit_cases import (BANDS, BASE, CLAIMS, CLEAN_NOISES, CLEAN_SEED, DURATION, LADDER, LADDER_SEED,  # noqa: F401
                           NOISES, OUTSIDE, PAIR_SEED, PAIRS, PROFILES, RIG_MULTIPLE, RIG_SEED, SEAL, SEV_JITTER,
                           STEPS, _cases, _clean_cases, _drawn, _ladder_cases, _pair_cases, _record, _rig_cases,
@@ -66,15 +72,46 @@ from .audit_cases import (BANDS, BASE, CLAIMS, CLEAN_NOISES, CLEAN_SEED, DURATIO
 from .audit_tables import _print_clean, _print_ladder, _print_pairs, _print_rigs, _print_tables
 
 
+_COLUMNS = {"ug": (0,), "x1": (1,), "p": (2, 3), "x5": (4,)}  # --round's names -> sample columns
+
+
+def _parse_round(spec: str) -> dict:
+    """``--round``'s ``name=step,...`` (names ug, x1, p, x5; steps in SI, > 0) -> {name: step}."""
+    steps = {}
+    for item in filter(None, (p.strip() for p in spec.split(","))):
+        name, _, value = item.partition("=")
+        if name not in _COLUMNS:
+            raise ValueError(f"{item!r}: round ug, x1, p (both pressures) or x5")
+        try:
+            steps[name] = float(value)
+        except ValueError:
+            raise ValueError(f"{item!r}: the step must be a number (SI units)") from None
+        if not steps[name] > 0 or steps[name] == float("inf"):
+            raise ValueError(f"{item!r}: the step must be finite and > 0")
+    return steps
+
+
+def _rounded(s, steps: dict):
+    """The samples with each named channel written in whole ``steps`` (a logger's resolution)."""
+    if not steps:
+        return s
+    s = s.copy()
+    for name, q in steps.items():
+        for k in _COLUMNS[name]:
+            s[:, k] = np.round(s[:, k] / q) * q
+    return s
+
+
 def _audit_one(args):
     from monitor.audit import AuditOptions, audit
 
-    i, case, seed, fixed, duration = args
+    i, case, seed, fixed, duration, steps = args
     kind, effects, profile, severity, noise, step = case
     if not fixed:
         profile, severity = _drawn(profile, severity, seed)
     drawn = f"{profile} severity {severity}"
     s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
+    s = _rounded(s, steps)
     if kind == "rig":
         drawn += f" on a rig of A1 {cfg.A1 * 1e4:.0f} cm^2, p_s {cfg.p_s / 1e6:.1f} MPa"
     try:
@@ -89,11 +126,12 @@ def _screen_one(args):
     from monitor.audit.auditable import excitation_ratios, glitch_span, largest_excursion
     from monitor.audit.result import AuditOptions
 
-    i, case, seed, fixed, duration = args
+    i, case, seed, fixed, duration, steps = args
     kind, effects, profile, severity, noise, step = case
     if not fixed:
         profile, severity = _drawn(profile, severity, seed)
     s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
+    s = _rounded(s, steps)
     excursions = [largest_excursion(s[:, k], glitch_span(cfg.h)) for k in range(1, 5)]
     split = int(AuditOptions().train_fraction * len(s))
     return (i, [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split),
@@ -152,6 +190,9 @@ def main(argv=None):
     ap.add_argument("--screen", action="store_true",
                     help="audit nothing: print how far the records stand from the refusals of a glitch and of a rig "
                          "held at one command")
+    ap.add_argument("--round", default="", metavar="SPEC",
+                    help="write each record's channels in whole steps first, as a logger of that resolution would: "
+                         "e.g. x1=1e-6,x5=5e-7,p=400,ug=1e-3 (SI; p is both pressures)")
     ap.add_argument("--duration", type=float, default=DURATION, metavar="S",
                     help=f"each record's length [s] (default {DURATION:g}; at least 5)")
     args = ap.parse_args(argv)
@@ -184,8 +225,12 @@ def main(argv=None):
         cases, first, only = _rig_cases(args.rigs), base + RIG_SEED, None
     else:
         cases, first, only = _cases(), base, args.only  # --only selects among the main list's records
-    todo = [(i, c, first + i, args.fixed, args.duration) for i, c in enumerate(cases) if (not args.quick or i % 7 == 0)
-            and (only is None or only == c[0] or only in c[1])]
+    try:
+        steps = _parse_round(args.round)
+    except ValueError as e:
+        ap.error(f"--round: {e}")
+    todo = [(i, c, first + i, args.fixed, args.duration, steps) for i, c in enumerate(cases)
+            if (not args.quick or i % 7 == 0) and (only is None or only == c[0] or only in c[1])]
     t0 = time.perf_counter()
     results = {}
     pool = ProcessPoolExecutor(args.jobs) if args.jobs > 1 else None

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from .signals import _d4_sigma
+from .signals import noise_levels
 
 __all__ = ["require_auditable", "require_live_channels", "require_no_glitch", "require_excitation", "find_glitch",
            "largest_excursion", "excitation_ratios", "held", "glitch_span", "GLITCH", "GLITCH_SPAN", "EXCITATION"]
@@ -86,7 +86,7 @@ def excitation_ratios(samples: np.ndarray, K_f: float, split: int) -> list[tuple
     are unit-free but for K_f, and x1's alone is free of it: a record with x1 in mm asks too little
     motion of a rig that moves."""
     s = np.asarray(samples, dtype=float)
-    noise = float(_d4_sigma(np.diff(s[:, 1], 4))) if len(s) > 4 else 0.0
+    noise = float(noise_levels(s)[0]) if len(s) > 4 else 0.0
     out = []
     for rows in (slice(0, split), slice(split, len(s))):
         asked, moved = (0.0 if not len(x) or np.ptp(x) == 0.0 else float(np.std(x)) / k
@@ -150,7 +150,7 @@ def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) ->
     tells models apart only by where each comes to rest, which a free run's held-out error then
     reads as dynamics (a rig held still was named a 12-sample sensor delay)."""
     s = np.asarray(samples, dtype=float)
-    noise = float(_d4_sigma(np.diff(s[:, 1], 4))) if len(s) > 4 else 0.0
+    noise = float(noise_levels(s)[0]) if len(s) > 4 else 0.0
     for part, rows, ratios in zip(("fitting", "held-out"), (slice(0, split), slice(split, len(s))),
                                   excitation_ratios(s, K_f, split)):
         if held(ratios):

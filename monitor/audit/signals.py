@@ -135,6 +135,29 @@ def _d4_sigma(d4: np.ndarray) -> np.ndarray:
     return np.sqrt(np.median(d4 * d4, axis=0) / D4_VARIANCE_GAIN / CHI2_1_MEDIAN)
 
 
+def resolution(x: np.ndarray) -> float:
+    """The step [unit of x] of which every change of ``x`` is a whole multiple (a quantized
+    sensor, or values written with few decimals), 0 when there is none (99 % of the nonzero
+    changes within 1 % of a multiple of the smallest)."""
+    d = np.abs(np.diff(np.asarray(x, dtype=float)))
+    d = d[d > 0]
+    if len(d) < 10:
+        return 0.0
+    q = float(d.min())
+    k = d / q
+    return q if np.mean(np.abs(k - np.round(k)) <= 0.01) >= 0.99 else 0.0
+
+
+def noise_levels(s: np.ndarray) -> np.ndarray:
+    """Noise rms of x1 [m], x3 [Pa], x4 [Pa], x5 [m] in the (N, 5) samples ``ug, x1, x3, x4, x5``:
+    from 4th differences, and at least a quantized channel's rounding noise (its ``resolution``
+    over sqrt(12)): where the rounding step exceeds the noise the reading holds still between
+    steps, its 4th differences are mostly 0, and a 1 mm step of x1 read as a noise-free sensor."""
+    s = np.asarray(s, dtype=float)
+    floor = np.array([resolution(s[:, k]) for k in range(1, 5)]) / math.sqrt(12.0)
+    return np.maximum(_d4_sigma(np.diff(s[:, 1:], 4, axis=0)), floor)
+
+
 def noise_at(x: np.ndarray, rows: np.ndarray) -> float:
     """Noise rms [unit of x] from the 4th differences of x centred on ``rows`` (sample
     indices); nan when there are none. Over a whole record the motion's own 4th differences
@@ -161,7 +184,7 @@ def signals(samples: np.ndarray, h: float) -> Signals:
     ug, x1, x3, x4, x5 = (s[:, i].copy() for i in range(5))
     # noise from the median of squared 4th differences (monitor.fourth_difference; the median
     # ignores transients)
-    sigma = _d4_sigma(np.diff(s[:, 1:], 4, axis=0))
+    sigma = noise_levels(s)
     imp = np.zeros(4 * SG_WINDOW)
     imp[2 * SG_WINDOW] = 1.0
     gain = np.array([float(np.sqrt(np.sum(_sg(imp, k, h) ** 2))) for k in range(3)])

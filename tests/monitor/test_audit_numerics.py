@@ -203,3 +203,22 @@ def test_the_rest_rows_allowance_is_the_pressures_margin_plus_what_x1_s_noise_ca
     th = {"m": 500.0, "B_fv": 1e4, "f_c": 80.0, "K_t": 0.0}
     np.testing.assert_allclose(rest_allowance(b, th), np.hypot(10.0, 2.0 * np.hypot(5.0, 2.0)))
     np.testing.assert_allclose(rest_allowance(b, {**th, "m": 0.0, "B_fv": 0.0}), 10.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(step=st.sampled_from([1e-6, 1e-5, 1e-3, 400.0, 1e3]), noise=st.floats(0.0, 0.2), seed=st.integers(0, 999))
+def test_a_quantized_channel_s_noise_is_at_least_its_rounding(step, noise, seed):
+    """A channel written in whole steps (a quantized sensor, or few decimals) holds still between
+    steps, so most 4th differences are 0 and a 1 mm step of x1 read as noise-free; its noise is at
+    least step / sqrt(12). Unrounded values have no such step."""
+    from monitor.audit.signals import noise_levels, resolution
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(2000) * 0.01
+    s = np.column_stack([np.sin(t), 30 * step * np.sin(0.7 * t), 4e6 + 1e5 * np.sin(t), 7e6 + 1e5 * np.cos(t),
+                         1e-4 * np.sin(1.3 * t)])
+    s[:, 1:] += rng.normal(0.0, 1.0, (2000, 4)) * np.array([noise * step, 5e3, 5e3, 5e-7])
+    assert resolution(s[:, 1]) == 0.0 and resolution(s[:, 2]) == 0.0
+    s[:, 1] = np.round(s[:, 1] / step) * step
+    assert resolution(s[:, 1]) == pytest.approx(step, rel=1e-6)
+    assert noise_levels(s)[0] >= step / np.sqrt(12.0) * (1 - 1e-9)

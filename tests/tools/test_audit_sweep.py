@@ -53,7 +53,7 @@ def test_a_pair_sweep_counts_both_effects_named_per_profile_and_band(monkeypatch
     from hydromon.tools import audit_sweep
 
     def audit_one(args):  # right when the record's band is not the fault band: 48 of 60
-        i, case, seed, fixed, duration = args
+        i, case, seed, fixed, duration, steps = args
         truth = sorted(case[1])
         return i, (truth if case[3] < 0.8 else ["none"]), truth, "", case[2]
     monkeypatch.setattr(audit_sweep, "_audit_one", audit_one)
@@ -213,7 +213,7 @@ def test_a_rig_sweep_counts_each_effect_and_the_clean_records_per_profile(monkey
     from hydromon.tools import audit_sweep
 
     def audit_one(args):  # right except in the fault band: 4 of 5 per cell
-        i, case, seed, fixed, duration = args
+        i, case, seed, fixed, duration, steps = args
         truth = sorted(case[1]) or ["none"]
         return i, (truth if case[3] < 0.8 else ["unexplained"]), truth, "", case[2]
     monkeypatch.setattr(audit_sweep, "_audit_one", audit_one)
@@ -223,3 +223,33 @@ def test_a_rig_sweep_counts_each_effect_and_the_clean_records_per_profile(monkey
     assert "| realistic | load_offset | 1600 N | 4/5 | 4/5 | 4/5 | 4/5 | 16/20 |" in out
     assert "one effect: 224/280 right" in out and "clean (named 'none'): 32/40 right" in out
     assert "base 5 (seeds base + 40000 + index)" in out
+
+
+@pytest.mark.parametrize("spec, said", [("x1=0", "'x1=0': the step must be finite and > 0"),
+                                        ("q=1", "'q=1': round ug, x1, p (both pressures) or x5"),
+                                        ("x1=um", "'x1=um': the step must be a number (SI units)")])
+def test_a_rounding_of_no_channel_or_no_step_is_refused(spec, said, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--round", spec, "--quick"])
+    assert e.value.code == 2 and f"--round: {said}" in capsys.readouterr().err
+
+
+def test_rounding_writes_the_named_channels_in_whole_steps_and_leaves_the_rest():
+    import numpy as np
+
+    from hydromon.tools.audit_sweep import _parse_round, _rounded
+
+    s = np.random.default_rng(1).normal(size=(50, 5)) * [1.0, 1e-3, 1e6, 1e6, 1e-4]
+    r = _rounded(s, _parse_round("x1=1e-4, p=400"))
+    np.testing.assert_allclose(r[:, 1] / 1e-4, np.round(r[:, 1] / 1e-4), atol=1e-9)
+    np.testing.assert_allclose(r[:, 2:4] / 400, np.round(r[:, 2:4] / 400), atol=1e-9)
+    assert np.array_equal(r[:, [0, 4]], s[:, [0, 4]]) and np.abs(r - s).max() <= 200.0
+    assert _rounded(s, {}) is s
+
+
+def test_a_screen_audits_nothing_and_says_how_far_the_records_stand_from_the_refusals(capsys):
+    main(["--screen", "--quick", "--ladder", "load_offset", "--seed-base", "5"])
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "23 records screened in " + out[0].split(" in ")[1] and "(nothing audited)" in out[0]
+    assert [line.split(":")[0].strip() for line in out[1:7]] == ["x1", "x3", "x4", "x5", "fitting part", "held-out part"]
+    assert out[-1] == "  refused: 0 of 23"
