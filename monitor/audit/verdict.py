@@ -80,7 +80,9 @@ def cause_words(name: str, effect: dict, shares: dict | None = None) -> str:
         return f"position recorded {e['sensor_delay']} sample(s) late, {where}"
     if name == "load_offset":
         return (f"a constant external force of {e['load_offset']:+.0f} N the rig constants do not know: "
-                "a load, a spring preload or a gravity share not in F_L")
+                "a load, a spring preload or a gravity share not in F_L, or a pressure sensor's zero offset, which "
+                "the force balance reads the same way (both pressures 1 bar low, as gauge pressures logged for "
+                "absolute ones are, show as -(A1 - A2) x 1 bar)")
     return name
 
 

@@ -290,3 +290,16 @@ def test_a_sag_whose_orifice_coefficient_does_not_reproduce_itself_is_refused():
     assert res.causes == ("supply_pressure_sag",), (res.causes, res.note)
     sag = next(c for c in res.candidates if c.name == "supply_pressure_sag")
     assert 1.2e10 < sag.value < 2.1e10 and sag.gain > 0.5, (sag.value, sag.gain)
+
+
+def test_pressures_logged_as_gauge_read_as_a_load_offset_and_the_words_say_so():
+    """Both pressures 1 bar low (gauge logged for absolute) add -(A1 - A2) x 1 bar to the force
+    balance, as a constant load would: named a load offset, and the words say a pressure sensor's
+    zero offset reads the same way."""
+    s, cfg = _record("clean", {}, "paper-var", 0.3, "realistic", 5)
+    s = s.copy()
+    s[:, 2:4] -= 1e5
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "load_offset", (res.cause, res.note)
+    assert abs(res.effect["load_offset"] + (cfg.A1 - cfg.A2) * 1e5) < 0.25 * (cfg.A1 - cfg.A2) * 1e5, res.effect
+    assert "or a pressure sensor's zero offset" in res.words, res.words
