@@ -15,7 +15,8 @@ import numpy as np
 from .signals import noise_levels
 
 __all__ = ["require_auditable", "require_live_channels", "require_no_glitch", "require_excitation", "find_glitch",
-           "largest_excursion", "excitation_ratios", "held", "glitch_span", "GLITCH", "GLITCH_SPAN", "EXCITATION"]
+           "largest_excursion", "excitation_ratios", "held", "glitch_span", "GLITCH", "GLITCH_SPAN", "EXCITATION",
+           "STILL"]
 
 CHANNELS = ("ug", "x1", "x3", "x4", "x5")
 # Both steps of a glitch exceed GLITCH times the channel's 99th-percentile step. Over 2052 simulated
@@ -28,6 +29,7 @@ GLITCH_SPAN = 2.0  # [s] the longest excursion read as a glitch (a dropout of th
 # and it or x1's rms EXCITATION times it (``held``); the tuning sweeps' commands reach 60 times it at
 # least, a rig held at one command 0 (x1 creeping there 5-13 times it).
 EXCITATION = 10.0
+STILL = 1.0  # a command asking for no more motion than the position noise is held, however x1 moves
 _TOP = 20  # largest steps of a channel paired in the glitch search
 
 
@@ -82,9 +84,9 @@ def find_glitch(x: np.ndarray, span: int) -> tuple[int, int, float, float] | Non
 def excitation_ratios(samples: np.ndarray, K_f: float, split: int) -> list[tuple[float, float]]:
     """For the samples before ``split`` and from it: the command's rms as a position (ug / K_f
     [V/m]) and x1's own rms, each over the position sensor's noise rms (x1's, from 4th
-    differences) [-]; 0 where the channel stays at one value, inf where x1 shows no noise. Both
-    are unit-free but for K_f, and x1's alone is free of it: a record with x1 in mm asks too little
-    motion of a rig that moves."""
+    differences) [-]; 0 where the channel stays at one value, inf where x1 shows no noise. x1's
+    ratio does not depend on the unit x1 is written in; the command's does (through K_f): a record
+    with x1 in mm asks a thousandth of the motion the rig makes."""
     s = np.asarray(samples, dtype=float)
     noise = float(noise_levels(s)[0]) if len(s) > 4 else 0.0
     out = []
@@ -96,13 +98,13 @@ def excitation_ratios(samples: np.ndarray, K_f: float, split: int) -> list[tuple
 
 
 def held(ratios: tuple[float, float]) -> bool:
-    """A part held at one command (``excitation_ratios``): its command asks for less motion than
-    the position noise, or for no more than EXCITATION times it while x1 moves no more either. A
+    """A part held at one command (``excitation_ratios``): its command asks for no more motion than
+    STILL times the position noise, or for no more than EXCITATION times it while x1 moves no more either. A
     piston settling or creeping under a held command moves, but the audit would compare only where
     models come to rest; a small command under a piston that moves far more is a unit or K_f
     error, which the audit's fit shows."""
     asked, moved = ratios
-    return asked <= 1.0 or max(asked, moved) <= EXCITATION
+    return asked <= STILL or max(asked, moved) <= EXCITATION
 
 
 def glitch_span(h: float) -> int:

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from monitor.audit import AuditOptions, audit
-from monitor.audit.auditable import (EXCITATION, GLITCH, excitation_ratios, find_glitch, largest_excursion,
+from monitor.audit.auditable import (EXCITATION, GLITCH, STILL, excitation_ratios, find_glitch, largest_excursion,
                                      require_auditable, require_excitation, require_live_channels, require_no_glitch)
 
 CHANNELS = ("ug", "x1", "x3", "x4", "x5")
@@ -118,7 +118,7 @@ def test_a_part_is_held_when_its_command_asks_for_no_more_motion_than_the_noise(
         s[:, 1] += 100 * noise * np.sqrt(2) * np.sin(np.arange(n) * 0.05)
     split = int(fraction * n)
     s[:, 0] = rms * noise * K_f * np.where(np.arange(n) % 2, 1.0, -1.0)  # rms exactly rms * noise as a position
-    limit = (1.0 if moves else EXCITATION) * float(_d4_sigma(np.diff(s[:, 1], 4)))
+    limit = (STILL if moves else EXCITATION) * float(_d4_sigma(np.diff(s[:, 1], 4)))
     if rms * noise > limit * 1.01:
         require_excitation(s, K_f, split, 0.01)
     elif rms * noise < limit * 0.99:
