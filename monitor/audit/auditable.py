@@ -148,24 +148,38 @@ def require_no_glitch(samples: np.ndarray, h: float) -> None:
 def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) -> None:
     """Refuse (ValueError naming the part and its times) samples ``ug, x1, x3, x4, x5`` at period
     ``h`` [s] held at one command (``held``) in the part that fits (before sample ``split``) or
-    in the part that scores (from it). A rig held at one command
-    tells models apart only by where each comes to rest, which a free run's held-out error then
-    reads as dynamics (a rig held still was named a 12-sample sensor delay)."""
+    in the part that scores (from it). A rig held at one command tells models apart only by where
+    each comes to rest, which a free run's held-out error then reads as dynamics (a rig held still
+    was named a 12-sample sensor delay). The words tell a command that stays at one value from one
+    far smaller than the motion (ug in other units) and from one lost in an x1 too noisy to audit."""
     s = np.asarray(samples, dtype=float)
     noise = float(noise_levels(s)[0]) if len(s) > 4 else 0.0
     for part, rows, ratios in zip(("fitting", "held-out"), (slice(0, split), slice(split, len(s))),
                                   excitation_ratios(s, K_f, split)):
         if held(ratios):
-            ug = s[rows, 0]
+            ug, x1 = s[rows, 0], s[rows, 1]
             first, last = rows.indices(len(s))[:2]
-            says = (f"stays at {ug[0]:.6g} V" if np.ptp(ug) == 0.0 else
-                    f"varies {np.std(ug):.3g} V rms ({_length(np.std(ug) / K_f)} as a position, ug / K_f)")
+            where = f"in the {part} part (t = {first * h:.2f}-{(last - 1) * h:.2f} s)"
+            against = f"against a position sensor's noise of {_length(noise)} rms"
+            if np.ptp(ug) == 0.0:
+                raise ValueError(
+                    f"the rig is held at one command {where}: the command ug stays at {ug[0]:.6g} V and x1 moves "
+                    f"{_length(np.std(x1))} rms, {against}; models cannot be told apart by where they come to rest. "
+                    f"Audit a record whose command varies in both parts (the first part fits, the rest scores; "
+                    f"--train-fraction moves the split)")
+            asked = f"{np.std(ug):.3g} V rms ({_length(np.std(ug) / K_f)} as a position, ug / K_f)"
+            if ratios[1] > EXCITATION:
+                raise ValueError(
+                    f"the command asks for almost no motion {where} while the rig moves: ug varies {asked} and x1 "
+                    f"{_length(np.std(x1))} rms, {against}: a rig settling under a held command, or ug logged in "
+                    f"other units than V (or a K_f that is not the rig's). Audit a record whose command moves the rig "
+                    f"in both parts (the first part fits, the rest scores; --train-fraction moves the split)")
             raise ValueError(
-                f"the rig is held at one command in the {part} part (t = {first * h:.2f}-{(last - 1) * h:.2f} s): "
-                f"the command ug {says} and x1 moves {_length(np.std(s[rows, 1]))} rms, against a position "
-                f"sensor's noise of {_length(noise)} rms; models cannot be told apart by where they come to rest. "
-                f"Audit a record whose command varies in both parts (the "
-                f"first part fits, the rest scores; --train-fraction moves the split)")
+                f"too little motion above the position noise {where}: the command ug varies {asked} and x1 "
+                f"{_length(np.std(x1))} rms, {against}: "
+                f"a rig held still, or an x1 too noisy (or too coarse) to audit; models cannot be told apart there. "
+                f"Audit a record whose command moves the rig in both parts (the first part fits, the rest scores; "
+                f"--train-fraction moves the split)")
 
 
 def require_auditable(samples: np.ndarray, K_f: float, split: int, h: float) -> None:

@@ -92,6 +92,25 @@ def test_a_rig_held_at_one_command_is_refused_for_the_part_that_fits(noise):
         audit(s, cfg)
 
 
+@pytest.mark.parametrize("mutate, said", [
+    (lambda s: s[:, 0].fill(2.5), "the rig is held at one command in the fitting part (t = 0.00-6.99 s): the command "
+                                  "ug stays at 2.5 V"),
+    (lambda s: s[:, 0].__imul__(1e-6), "the command asks for almost no motion in the fitting part (t = 0.00-6.99 s) "
+                                       "while the rig moves"),
+    (lambda s: s[:, 1].__iadd__(np.random.default_rng(1).normal(0.0, 0.02, len(s))),
+     "too little motion above the position noise in the fitting part (t = 0.00-6.99 s)"),
+])
+def test_the_refusal_says_whether_the_command_holds_is_out_of_scale_or_drowns_in_x1_s_noise(mutate, said):
+    """A command at one value, a command in microvolts under a moving rig (ug in other units), an
+    x1 with 20 mm of noise: three records that show no motion to audit, each said for what it is."""
+    s0, cfg = _rec()
+    s = np.array(s0)
+    mutate(s)
+    with pytest.raises(ValueError) as err:
+        _require(s, cfg)
+    assert str(err.value).startswith(said), str(err.value)
+
+
 def test_a_command_that_stops_in_the_held_out_part_is_refused_for_that_part():
     s0, cfg = _rec()
     s = np.array(s0)
@@ -122,7 +141,8 @@ def test_a_part_is_held_when_its_command_asks_for_no_more_motion_than_the_noise(
     if rms * noise > limit * 1.01:
         require_excitation(s, K_f, split, 0.01)
     elif rms * noise < limit * 0.99:
-        with pytest.raises(ValueError, match="held at one command in the fitting part"):
+        with pytest.raises(ValueError, match=r"(held at one command|too little motion above the position noise|"
+                                             r"asks for almost no motion) in the fitting part \(t = "):
             require_excitation(s, K_f, split, 0.01)
 
 
