@@ -130,7 +130,7 @@ def require_no_glitch(samples: np.ndarray, h: float) -> None:
     """Refuse (ValueError naming the channel, the samples and the times) samples ``ug, x1, x3, x4,
     x5`` at period ``h`` [s] in which a measured channel leaves its course and comes back
     (``find_glitch``): a spike or a dropout of the sensor's reading is fitted as if the rig had
-    moved that way, and a one-sample spike of x1 read as a 35 kN load offset."""
+    moved that way: a one-sample spike of x1 reads as a 35 kN load offset."""
     s = np.asarray(samples, dtype=float)
     span = glitch_span(h)
     for k, name in enumerate(CHANNELS[1:], 1):
@@ -150,7 +150,7 @@ def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) ->
     ``h`` [s] held at one command (``held``) in the part that fits (before sample ``split``) or
     in the part that scores (from it). A rig held at one command tells models apart only by where
     each comes to rest, which a free run's held-out error then reads as dynamics (a rig held still
-    was named a 12-sample sensor delay). The words tell a command that stays at one value from one
+    reads as a 12-sample sensor delay). The words tell a command that stays at one value from one
     far smaller than the motion (ug in other units) and from one lost in an x1 too noisy to audit."""
     s = np.asarray(samples, dtype=float)
     noise = float(noise_levels(s)[0]) if len(s) > 4 else 0.0
