@@ -55,7 +55,14 @@ def to_json(result) -> dict:
         "stribeck_reach_N": (None if result.stribeck_reach is None else
                              "beyond" if math.isinf(result.stribeck_reach) else result.stribeck_reach),
         "unfitted": result.unfitted,
+        "glitches_replaced": result.glitches,
     })
+
+
+def glitch_words(glitches: dict) -> str:
+    """The sensor glitches replaced before the audit, in words."""
+    return ("sensor glitches replaced by their neighbours' mean before the audit: "
+            + ", ".join(f"{ch} {n}" for ch, n in glitches.items() if n))
 
 
 def summary(result) -> str:
@@ -72,6 +79,8 @@ def summary(result) -> str:
         lines.append(f"{c.name:22s} {c.score:9.2f} {c.twin:6.2f} {c.gain:14.2f}")
     for name, why in result.unfitted.items():
         lines.append(f"{name:22s} not fitted: {why}")
+    if any(result.glitches.values()):
+        lines.append(glitch_words(result.glitches))
     g = result.gain
     lines.append("held-out free-run NRMSE (nominal -> extended): " + ", ".join(
         f"{ch} {g[ch]['nrmse_nominal']:.3f} -> {g[ch]['nrmse_extended']:.3f}"
@@ -163,6 +172,8 @@ def write_report(result, directory, what: str = "") -> Path:
         md += [result.words, ""]
     if result.note and result.note != result.words:
         md += [result.note, ""]
+    if any(result.glitches.values()):
+        md += [glitch_words(result.glitches) + ".", ""]
     md += ["## Candidates (held-out score, higher is better; free-run gain = error reduction)", "",
            _md_table([(c.name, f"{c.score:.2f}", f"{c.twin:.2f}", f"{c.gain:.2f}",
                        _effect_text(c.effect),

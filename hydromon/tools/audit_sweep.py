@@ -124,6 +124,7 @@ def _audit_one(args):
 
 def _screen_one(args):
     from monitor.audit.auditable import excitation_ratios, glitch_span, largest_excursion
+    from monitor.outlier_gate import gated
     from monitor.audit.result import AuditOptions
 
     i, case, seed, fixed, duration, steps = args
@@ -131,7 +132,7 @@ def _screen_one(args):
     if not fixed:
         profile, severity = _drawn(profile, severity, seed)
     s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
-    s = _rounded(s, steps)
+    s = gated(_rounded(s, steps))[0]  # as the audit sees it: lone glitches mended
     excursions = [largest_excursion(s[:, k], glitch_span(cfg.h)) for k in range(1, 5)]
     split = int(AuditOptions().train_fraction * len(s))
     return (i, [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split),

@@ -66,8 +66,8 @@ def is_cold(root: Path = _ROOT, dirs: tuple | None = None) -> bool:
     ``dirs`` (relative to the checkout ``root``; None: the packages' top directories): the
     first run of this version from here, which compiles every kernel it calls (about a minute).
     numba keeps a module's kernels under its own directory's name, so a command names the
-    directories whose kernels it runs (``hydromon audit``: monitor/audit and plant_sim, and
-    never monitor's own). Kernels another checkout of the same sources compiled do not count:
+    directories whose kernels it runs (``hydromon audit``: monitor's outlier gate, monitor/audit
+    and plant_sim). Kernels another checkout of the same sources compiled do not count:
     numba keys them on their files' paths, so this one compiles its own."""
     cache = os.environ.get("NUMBA_CACHE_DIR")
     if not cache:

@@ -58,7 +58,8 @@ from .hump import hump_evidence
 from .probe import probe_fits
 from .reach import stribeck_reach
 from .result import AuditOptions, AuditResult, CandidateResult
-from .auditable import require_auditable
+from ..outlier_gate import gated
+from .auditable import require_auditable, require_live_channels
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
 
@@ -102,6 +103,14 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     cfg = config or RigConfig()
     opt = options or AuditOptions()
     s = np.asarray(samples, dtype=float)
+    require_live_channels(s)
+    if s.ndim == 2 and s.shape[1] == 5 and np.all(np.isfinite(s)):
+        # a lone glitch (or a pair on x1, x3, x4) is replaced by its neighbours as the live monitor
+        # replaces it: a one-sample spike of a pressure 10 times its usual step reads as entrained
+        # air; a dropout longer than the gate mends is refused (require_auditable)
+        s, replaced = gated(s)
+    else:
+        replaced = np.zeros(4)  # ``signals`` says what is wrong with these
     require_auditable(s, cfg.K_f, int(opt.train_fraction * len(s)), cfg.h)
     eq = _Equations(s, cfg, opt.train_fraction)
     sig, split, cache, nominal, p_nom, theta0 = eq.sig, eq.split, eq.cache, eq.nominal, eq.p_nom, eq.theta0
@@ -280,6 +289,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         cause=verdict.cause, causes=verdict.causes, confident=verdict.confident, note=verdict.note,
         words=verdict.words, structure=verdict.structure, obeys=verdict.obeys, effect=verdict.effect,
         stribeck_reach=verdict.stribeck_reach, unfitted=unfitted,
+        glitches={ch: int(n) for ch, n in zip(("x1", "x3", "x4", "x5"), replaced)},
         candidates=results, params_nominal=p_nom,
         freerun_nominal=fr_nom or {}, residual_var_nominal=nom_te, split=split,
         t=np.arange(sig.n) * cfg.h, measured=measured, simulated_nominal=sim_nom,

@@ -161,6 +161,9 @@ class AuditResult:
     unfitted: dict = field(default_factory=dict)
     """Candidates of the library that no searched value could be fitted for on this record, by
     name: why (they are not in ``candidates``, so not ranked)."""
+    glitches: dict = field(default_factory=dict)
+    """Sensor glitches replaced by their neighbours before the audit (``monitor.outlier_gate``,
+    as the live monitor replaces them), per sensor x1, x3, x4, x5."""
 
     @property
     def best(self) -> CandidateResult | None:

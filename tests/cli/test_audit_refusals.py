@@ -3,6 +3,7 @@ naming the file and why (exit status 2)."""
 
 from __future__ import annotations
 
+import json
 import os
 
 import numpy as np
@@ -33,11 +34,12 @@ def _set(col, value):
     (_set(3, 4e6), None, "rec.csv: x3 is 4e+06 in every sample"),
     (_set(4, lambda a: a[:, 3]), None, "rec.csv: the audit's equations cannot be solved on this record"),
     (lambda a: a, 100, "rec.csv: need at least 250 samples, got 100"),
-    (lambda a: (a.__setitem__((300, 2), 1.0), a)[1], None, "rec.csv: x1 jumps "),
+    (lambda a: (a.__setitem__((slice(300, 340), 2), 0.0), a)[1], None,
+     "rec.csv: x1 jumps -43.8 mm from sample 300 to 339 (t = 3.00-3.39 s) and back"),
     (_set(1, 2.5), None, "rec.csv: the rig is held at one command in the fitting part (t = 0.00-3.49 s)"),
 ])
 def test_audit_of_a_record_it_cannot_fit_names_the_file_and_why(tmp_path, capsys, mutate, rows, needle):
-    """A dead sensor, two pressures that read as one, too short a record, a spike of x1 or a command
+    """A dead sensor, two pressures that read as one, too short a record, a dropout of x1 or a command
     held at one value: one line naming the file, not numpy's "Singular matrix", an equation's row
     count alone, or a cause the record cannot show."""
     _moving_csv(tmp_path / "rec.csv", mutate, rows)
@@ -75,3 +77,17 @@ def test_audit_refuses_an_empty_report_directory_and_a_fraction_outside_its_rang
     with pytest.raises(SystemExit):
         main(["audit", "--help"])
     assert "(0.2-0.9; default 0.7)" in capsys.readouterr().out
+
+
+def test_a_lone_sensor_glitch_is_replaced_as_the_live_monitor_replaces_it_and_said(tmp_path, capsys):
+    """A one-sample spike (x1 1 m, x3 900 MPa) is the live monitor's outlier gate's to mend: the
+    audit goes on with the neighbours' mean there and says how many it replaced."""
+    def spikes(a):
+        a[300, 2], a[200, 3] = 1.0, 9e8
+        return a
+    path = _moving_csv(tmp_path / "rec.csv", spikes)
+    assert main(["audit", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "sensor glitches replaced by their neighbours' mean before the audit: x1 1, x3 1" in out, out
+    assert main(["audit", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["glitches_replaced"] == {"x1": 1, "x3": 1, "x4": 0, "x5": 0}

@@ -15,7 +15,7 @@ NAME = "audit"
 HELP = "audit a recording (.csv t,ug,x1,x3,x4,x5 SI, or .mcap): which named model extension explains it"
 # compiled numerical kernels (a cold cache compiles them first: hydromon.cli.main), in these
 # source directories only: numba caches them under each one's name
-KERNELS = ("monitor/audit", "plant_sim")
+KERNELS = ("monitor", "monitor/audit", "plant_sim")
 EXAMPLES = (
     'hydromon audit db.csv --report audit-report',
     'hydromon audit tour.mcap --json   # every rig of a recording',
