@@ -58,6 +58,7 @@ from .hump import hump_evidence
 from .probe import probe_fits
 from .reach import stribeck_reach
 from .result import AuditOptions, AuditResult, CandidateResult
+from .signals import require_length
 from ..outlier_gate import gated
 from .auditable import require_auditable, require_live_channels
 
@@ -103,6 +104,8 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     cfg = config or RigConfig()
     opt = options or AuditOptions()
     s = np.asarray(samples, dtype=float)
+    if s.ndim == 2 and s.shape[1] == 5:
+        require_length(s)  # before any check of what the samples hold
     require_live_channels(s)
     if s.ndim == 2 and s.shape[1] == 5 and np.all(np.isfinite(s)):
         # a lone glitch (or a pair on x1, x3, x4) is replaced by its neighbours as the live monitor

@@ -19,7 +19,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from ..fourth_difference import CHI2_1_MEDIAN, D4_VARIANCE_GAIN
 
-__all__ = ["Signals", "signals", "SG_WINDOW", "FORCE_WINDOW", "MARGIN", "MIN_SAMPLES"]
+__all__ = ["Signals", "signals", "require_length", "SG_WINDOW", "FORCE_WINDOW", "MARGIN", "MIN_SAMPLES"]
 
 SG_WINDOW = 31  # [samples] window of the chamber equations' filter L (odd)
 FORCE_WINDOW = 11  # [samples] window of the force equation's filter (friction acts near rest: keep it short)
@@ -169,14 +169,19 @@ def noise_at(x: np.ndarray, rows: np.ndarray) -> float:
     return float(_d4_sigma(d4[idx])) if len(idx) else math.nan
 
 
+def require_length(samples: np.ndarray) -> None:
+    """Refuse (ValueError) fewer than MIN_SAMPLES samples: the first thing to say of a record."""
+    if len(samples) < MIN_SAMPLES:
+        raise ValueError(f"need at least {MIN_SAMPLES} samples, got {len(samples)}")
+
+
 def signals(samples: np.ndarray, h: float) -> Signals:
     """Noise levels and lightly smoothed ingredients of the (N, 5) samples ``ug, x1, x3, x4, x5``
     with period h [s]."""
     s = np.asarray(samples, dtype=float)
     if s.ndim != 2 or s.shape[1] != 5:
         raise ValueError(f"samples must be (N, 5): ug, x1, x3, x4, x5; got shape {s.shape}")
-    if len(s) < 10 * MARGIN:
-        raise ValueError(f"need at least {MIN_SAMPLES} samples, got {len(s)}")
+    require_length(s)
     if not np.all(np.isfinite(s)):
         raise ValueError(f"non-finite value in sample {int(np.argwhere(~np.isfinite(s))[0, 0])}")
     if not (h > 0 and math.isfinite(h)):

@@ -185,3 +185,10 @@ def test_a_lone_pressure_or_spool_glitch_is_mended_before_the_audit_not_named_an
     res = audit(s, cfg, AuditOptions(free_run=False))
     assert res.cause == "none", (res.cause, res.note)
     assert res.glitches == {ch: int(k == channel) for k, ch in enumerate(CHANNELS) if k}, res.glitches
+
+
+@pytest.mark.parametrize("n", [1, 10, 249])
+def test_a_record_too_short_says_so_before_anything_about_what_it_holds(n):
+    """A few samples of a rig at rest are too short first, not held at one command or dead."""
+    with pytest.raises(ValueError, match=f"^need at least 250 samples, got {n}$"):
+        audit(np.ones((n, 5)))
