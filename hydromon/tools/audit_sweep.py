@@ -132,17 +132,18 @@ def _screen_one(args):
     if not fixed:
         profile, severity = _drawn(profile, severity, seed)
     s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
-    s = gated(_rounded(s, steps))[0]  # as the audit sees it: lone glitches mended
+    s, mended = gated(_rounded(s, steps))  # as the audit sees it: lone glitches mended
     excursions = [largest_excursion(s[:, k], glitch_span(cfg.h)) for k in range(1, 5)]
     split = int(AuditOptions().train_fraction * len(s))
     return (i, [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split),
-            f"{profile} severity {severity}")
+            f"{profile} severity {severity}", int(mended.sum()))
 
 
 def _print_screen(cases, screened, wall):
     """The largest excursion ratio per channel and the smallest command per part over ``screened``
-    (index -> (excursions, excitation ratios per part, drawn)), each with its record."""
-    from monitor.audit.auditable import EXCITATION, GLITCH, held
+    (index -> (excursions, excitation ratios per part, drawn, samples the outlier gate mended)),
+    each with its record, and the records the gate mended."""
+    from monitor.audit.auditable import EXCITATION, GLITCH, STILL, held
 
     def rec(i):
         kind, effects, _, _, noise, _ = cases[i]
@@ -157,9 +158,12 @@ def _print_screen(cases, screened, wall):
         i = min(screened, key=lambda j: screened[j][1][k][0])
         asked, moved = screened[i][1][k]
         print(f"  {part} part: smallest command {asked:.1f} times the position noise, x1 moving {moved:.1f} times it "
-              f"(held, so refused, at a command of at most 1, or of at most {EXCITATION:g} with x1 at most "
+              f"(held, so refused, at a command of at most {STILL:g}, or of at most {EXCITATION:g} with x1 at most "
               f"{EXCITATION:g}): {rec(i)}")
-    refused = sum(max(g) > GLITCH or any(held(r) for r in c) for g, c, _ in screened.values())
+    mended = [i for i in sorted(screened) if screened[i][3]]
+    print(f"  mended by the outlier gate first: {sum(screened[i][3] for i in mended)} sample(s) in {len(mended)} "
+          f"record(s)" + "".join(f"; {rec(i)}" for i in mended[:5]) + ("; ..." if len(mended) > 5 else ""))
+    refused = sum(max(g) > GLITCH or any(held(r) for r in c) for g, c, _, _ in screened.values())
     print(f"  refused: {refused} of {len(screened)}")
 
 

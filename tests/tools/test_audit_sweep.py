@@ -253,4 +253,4 @@ def test_a_screen_audits_nothing_and_says_how_far_the_records_stand_from_the_ref
     assert out[0].startswith("23 records screened in ") and out[0].endswith(" s (nothing audited)"), out[0]
     heads = [line.split(":")[0].strip() for line in out[1:7]]
     assert heads == ["x1", "x3", "x4", "x5", "fitting part", "held-out part"], out
-    assert out[-1] == "  refused: 0 of 23"
+    assert out[-2:] == ["  mended by the outlier gate first: 0 sample(s) in 0 record(s)", "  refused: 0 of 23"]
