@@ -31,7 +31,8 @@ both pressures) before the audit sees them, as a logger of that resolution would
 
 ``--screen`` audits nothing: it prints how far the chosen records stand from the audit's refusals of a
 glitch and of a rig held at one command (``monitor.audit.auditable``): the largest excursion ratio of
-each measured channel and the smallest command of each part, each with its record.
+each measured channel and the smallest command of each part, each with its record, and the records the outlier
+gate mends first.
 
 A record counts as right when the audit names exactly its effect ("none" for clean records;
 both effects, in any order, for a pair). The last line times one full audit of a 60 s record
