@@ -103,16 +103,21 @@ def _rounded(s, steps: dict):
     return s
 
 
-def _audit_one(args):
-    from monitor.audit import AuditOptions, audit
-
+def _sample(args):
+    """One task's record as the audit gets it (drawn, simulated, rounded): (samples, config, drawn)."""
     i, case, seed, fixed, duration, steps = args
     kind, effects, profile, severity, noise, step = case
     if not fixed:
         profile, severity = _drawn(profile, severity, seed)
-    drawn = f"{profile} severity {severity}"
     s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
-    s = _rounded(s, steps)
+    return _rounded(s, steps), cfg, f"{profile} severity {severity}"
+
+
+def _audit_one(args):
+    from monitor.audit import AuditOptions, audit
+
+    i, (kind, effects, *_) = args[:2]
+    s, cfg, drawn = _sample(args)
     if kind == "rig":
         drawn += f" on a rig of A1 {cfg.A1 * 1e4:.0f} cm^2, p_s {cfg.p_s / 1e6:.1f} MPa"
     try:
@@ -128,16 +133,12 @@ def _screen_one(args):
     from monitor.outlier_gate import gated
     from monitor.audit.result import AuditOptions
 
-    i, case, seed, fixed, duration, steps = args
-    kind, effects, profile, severity, noise, step = case
-    if not fixed:
-        profile, severity = _drawn(profile, severity, seed)
-    s, cfg = _record(kind, effects, profile, severity, noise, seed, duration)
-    s, mended = gated(_rounded(s, steps))  # as the audit sees it: lone glitches mended
+    s, cfg, drawn = _sample(args)
+    s, mended = gated(s)  # as the audit sees it: lone glitches mended
     excursions = [largest_excursion(s[:, k], glitch_span(cfg.h)) for k in range(1, 5)]
     split = int(AuditOptions().train_fraction * len(s))
-    return (i, [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split),
-            f"{profile} severity {severity}", int(mended.sum()))
+    return (args[0], [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split), drawn,
+            int(mended.sum()))
 
 
 def _print_screen(cases, screened, wall):

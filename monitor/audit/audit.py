@@ -60,7 +60,7 @@ from .reach import stribeck_reach
 from .result import AuditOptions, AuditResult, CandidateResult
 from .signals import require_length
 from ..outlier_gate import gated
-from .auditable import require_auditable, require_live_channels
+from .auditable import require_auditable
 
 __all__ = ["audit", "AuditResult", "CandidateResult", "AuditOptions"]
 
@@ -104,17 +104,14 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
     cfg = config or RigConfig()
     opt = options or AuditOptions()
     s = np.asarray(samples, dtype=float)
-    if s.ndim == 2 and s.shape[1] == 5:
+    replaced = np.zeros(4)
+    if s.ndim == 2 and s.shape[1] == 5 and np.all(np.isfinite(s)):  # else ``signals`` says what is wrong
         require_length(s)  # before any check of what the samples hold
-    require_live_channels(s)
-    if s.ndim == 2 and s.shape[1] == 5 and np.all(np.isfinite(s)):
         # a lone glitch (or a pair on x1, x3, x4) is replaced by its neighbours as the live monitor
         # replaces it: a one-sample spike of a pressure 10 times its usual step reads as entrained
-        # air; a dropout longer than the gate mends is refused (require_auditable)
+        # air; a dead channel, a dropout longer than the gate mends or a held rig is refused
         s, replaced = gated(s)
-    else:
-        replaced = np.zeros(4)  # ``signals`` says what is wrong with these
-    require_auditable(s, cfg.K_f, int(opt.train_fraction * len(s)), cfg.h)
+        require_auditable(s, cfg.K_f, int(opt.train_fraction * len(s)), cfg.h)
     eq = _Equations(s, cfg, opt.train_fraction)
     sig, split, cache, nominal, p_nom, theta0 = eq.sig, eq.split, eq.cache, eq.nominal, eq.p_nom, eq.theta0
     floors, nom_tr, nom_te = eq.floors, eq.nom_tr, eq.nom_te

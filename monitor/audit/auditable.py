@@ -31,6 +31,7 @@ GLITCH_SPAN = 2.0  # [s] the longest excursion read as a glitch (a dropout of th
 EXCITATION = 10.0
 STILL = 1.0  # a command asking for no more motion than the position noise is held, however x1 moves
 _TOP = 20  # largest steps of a channel paired in the glitch search
+_PARTS = "(the first part fits, the rest scores; --train-fraction moves the split)"
 
 
 def require_live_channels(samples: np.ndarray) -> None:
@@ -81,20 +82,28 @@ def find_glitch(x: np.ndarray, span: int) -> tuple[int, int, float, float] | Non
     return g if g is not None and g[3] > GLITCH else None
 
 
-def excitation_ratios(samples: np.ndarray, K_f: float, split: int) -> list[tuple[float, float]]:
+def excitation_ratios(samples: np.ndarray, K_f: float, split: int, noise: float | None = None
+                      ) -> list[tuple[float, float]]:
     """For the samples before ``split`` and from it: the command's rms as a position (ug / K_f
     [V/m]) and x1's own rms, each over the position sensor's noise rms (x1's, from 4th
     differences) [-]; 0 where the channel stays at one value, inf where x1 shows no noise. x1's
     ratio does not depend on the unit x1 is written in; the command's does (through K_f): a record
-    with x1 in mm asks a thousandth of the motion the rig makes."""
+    with x1 in mm asks a thousandth of the motion the rig makes. ``noise``: x1's noise rms [m]
+    when the caller has it (default: ``noise_levels``)."""
     s = np.asarray(samples, dtype=float)
-    noise = float(noise_levels(s)[0]) if len(s) > 4 else 0.0
+    if noise is None:
+        noise = _x1_noise(s)
     out = []
     for rows in (slice(0, split), slice(split, len(s))):
         asked, moved = (0.0 if not len(x) or np.ptp(x) == 0.0 else float(np.std(x)) / k
                         for x, k in ((s[rows, 0], K_f), (s[rows, 1], 1.0)))
         out.append(tuple(r / noise if noise > 0 else math.inf if r > 0 else 0.0 for r in (asked, moved)))
     return out
+
+
+def _x1_noise(s: np.ndarray) -> float:
+    """x1's noise rms [m] (``noise_levels``), 0 for too few samples to tell."""
+    return float(noise_levels(s)[0]) if len(s) > 4 else 0.0
 
 
 def held(ratios: tuple[float, float]) -> bool:
@@ -153,9 +162,9 @@ def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) ->
     reads as a 12-sample sensor delay). The words tell a command that stays at one value from one
     far smaller than the motion (ug in other units) and from one lost in an x1 too noisy to audit."""
     s = np.asarray(samples, dtype=float)
-    noise = float(noise_levels(s)[0]) if len(s) > 4 else 0.0
+    noise = _x1_noise(s)
     for part, rows, ratios in zip(("fitting", "held-out"), (slice(0, split), slice(split, len(s))),
-                                  excitation_ratios(s, K_f, split)):
+                                  excitation_ratios(s, K_f, split, noise)):
         if held(ratios):
             ug, x1 = s[rows, 0], s[rows, 1]
             first, last = rows.indices(len(s))[:2]
@@ -165,21 +174,19 @@ def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) ->
                 raise ValueError(
                     f"the rig is held at one command {where}: the command ug stays at {ug[0]:.6g} V and x1 moves "
                     f"{_length(np.std(x1))} rms, {against}; models cannot be told apart by where they come to rest. "
-                    f"Audit a record whose command varies in both parts (the first part fits, the rest scores; "
-                    f"--train-fraction moves the split)")
+                    f"Audit a record whose command varies in both parts {_PARTS}")
             asked = f"{np.std(ug):.3g} V rms ({_length(np.std(ug) / K_f)} as a position, ug / K_f)"
             if ratios[1] > EXCITATION:
                 raise ValueError(
                     f"the command asks for almost no motion {where} while the rig moves: ug varies {asked} and x1 "
                     f"{_length(np.std(x1))} rms, {against}: a rig settling under a held command, or ug logged in "
                     f"other units than V (or a K_f that is not the rig's). Audit a record whose command moves the rig "
-                    f"in both parts (the first part fits, the rest scores; --train-fraction moves the split)")
+                    f"in both parts {_PARTS}")
             raise ValueError(
                 f"too little motion above the position noise {where}: the command ug varies {asked} and x1 "
                 f"{_length(np.std(x1))} rms, {against}: "
                 f"a rig held still, or an x1 too noisy (or too coarse) to audit; models cannot be told apart there. "
-                f"Audit a record whose command moves the rig in both parts (the first part fits, the rest scores; "
-                f"--train-fraction moves the split)")
+                f"Audit a record whose command moves the rig in both parts {_PARTS}")
 
 
 def require_auditable(samples: np.ndarray, K_f: float, split: int, h: float) -> None:

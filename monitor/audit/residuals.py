@@ -45,7 +45,7 @@ import numpy as np
 from hydromon.contract import RigConfig
 
 from .eiv import compensated_lstsq
-from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, noise_at, resolution, signals  # noqa: F401  (re-exported)
+from .signals import FORCE_WINDOW, MARGIN, MIN_SAMPLES, Signals, noise_at, rounding_noise, signals  # noqa: F401  (re-exported)
 from .valve_fit import fit_valve, valve_response  # noqa: F401  (valve_response re-exported)
 
 __all__ = ["Signals", "signals", "Spec", "Block", "build_blocks", "fit_blocks", "Fit",
@@ -252,7 +252,7 @@ def build_blocks(sig: Signals, cfg: RigConfig, spec: Spec, theta0: float = 6e-4)
     still = (slow[rows] > 0) & (3.0 * sig.v_noise < REST_V_RESOLUTION)
     rX = np.column_stack([c[rows] for c in fcols.values()])[still]
     # x1's noise where the piston stands: the whole record's estimate holds a stick-slip motion's jerks
-    sigma_rest = (max(noise_at(x1, rows[still]), resolution(x1) / math.sqrt(12.0)) if still.sum() >= REST_NOISE_ROWS
+    sigma_rest = (max(noise_at(x1, rows[still]), rounding_noise(x1)) if still.sum() >= REST_NOISE_ROWS
                   else sig.sigma[0])  # a quantized x1 standing still reads one value: its rounding is its noise
     rest = Block("rest", fy[still], rX, tuple(fcols), rows[still], np.ones(int(still.sum()), bool),
                  static=("f_c",) + tuple(spec.static_cols), margin=2.0 * sigma_net,

@@ -148,13 +148,19 @@ def resolution(x: np.ndarray) -> float:
     return q if np.mean(np.abs(k - np.round(k)) <= 0.01) >= 0.99 else 0.0
 
 
+def rounding_noise(x: np.ndarray) -> float:
+    """The rms [unit of x] of a quantized channel's rounding: its ``resolution`` over sqrt(12); 0
+    for a channel without one."""
+    return resolution(x) / math.sqrt(12.0)
+
+
 def noise_levels(s: np.ndarray) -> np.ndarray:
     """Noise rms of x1 [m], x3 [Pa], x4 [Pa], x5 [m] in the (N, 5) samples ``ug, x1, x3, x4, x5``:
-    from 4th differences, and at least a quantized channel's rounding noise (its ``resolution``
-    over sqrt(12)): where the rounding step exceeds the noise the reading holds still between
-    steps, its 4th differences are mostly 0, and a 1 mm step of x1 read as a noise-free sensor."""
+    from 4th differences, and at least a quantized channel's ``rounding_noise``: where the
+    rounding step exceeds the noise the reading holds still between steps, its 4th differences
+    are mostly 0, and a 1 mm step of x1 read as a noise-free sensor."""
     s = np.asarray(s, dtype=float)
-    floor = np.array([resolution(s[:, k]) for k in range(1, 5)]) / math.sqrt(12.0)
+    floor = np.array([rounding_noise(s[:, k]) for k in range(1, 5)])
     return np.maximum(_d4_sigma(np.diff(s[:, 1:], 4, axis=0)), floor)
 
 
