@@ -15,7 +15,9 @@ from hydromon.engine.status import health_status
 from monitor.grading import Ranges
 from monitor.ident_options import IdentOptions
 from monitor.evaluations import Assessment, Events
+from monitor.outlier_gate import gated
 from monitor.pipeline import Pipeline
+from monitor.readings import unit_slip
 from monitor.refine import Refinement, refine
 
 __all__ = ["Evaluation", "evaluate"]
@@ -35,16 +37,18 @@ class Evaluation:
     x1_clamped: int = 0  # samples whose x1 would have emptied a chamber (config or x1 wrong)
     options: IdentOptions | None = None  # the identifier's options (None: defaults)
     uncalibrated: str | None = None  # why no ranges grade the rig (None: some do)
+    units: str | None = None  # why the readings (a lone glitch mended) cannot be in the config's units
 
     @property
     def status(self) -> str:
-        """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``) or x1
-        went beyond a chamber's end, ``uncalibrated`` when no ranges were made for the rig's
+        """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``), x1
+        went beyond a chamber's end or a reading cannot be in the config's units
+        (``monitor.readings``), ``uncalibrated`` when no ranges were made for the rig's
         constants, ``ok`` once converged with a grade placed, else ``converging`` (the live
         monitor's statuses: a converged rig whose grade cannot be placed, level -1, is still
         converging)."""
         a = self.assessment
-        return health_status(bool(a.implausible or self.x1_clamped), False, a.converged, a.level,
+        return health_status(bool(a.implausible or self.x1_clamped or self.units), False, a.converged, a.level,
                              self.uncalibrated is None)
 
     @property
@@ -66,7 +70,8 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     why = pipe.fleet.why[0]
     return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events,
                       pipe.fleet.ranges if why is None else None, pipe.fleet.x1_clamped(0), options,
-                      None if why is None else f"{why}; {COMMISSION_HINT}")
+                      uncalibrated=None if why is None else f"{why}; {COMMISSION_HINT}",
+                      units=unit_slip(gated(recording.samples, options, recording.restarts)[0], recording.config))
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

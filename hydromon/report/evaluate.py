@@ -47,6 +47,7 @@ def to_json(ev: Evaluation) -> dict:
     if ev.glitches is not None:
         out["glitches_replaced"] = ev.glitches
     out["x1_outside_chambers"] = ev.x1_clamped
+    out["units"] = ev.units  # why a reading cannot be in the config's units (None: it can)
     out["implausible"] = list(a.implausible)  # impossible estimates: the grade is withheld
     rec = ev.recording
     out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected,
@@ -127,6 +128,8 @@ def render(ev: Evaluation, console=None) -> None:
         console.print(f"[red]not graded: physically impossible estimates ({what}; each must be positive). The "
                       "record does not obey the model: check the units (SI: m, Pa, V), the signs and zeros of x1, "
                       "x3, x4, x5 and ug, and the rig constants[/red]")
+    if ev.units:
+        console.print(f"[red]not to be trusted: {ev.units}[/red]", highlight=False)
     if ev.x1_clamped:
         c = r.config
         lo, hi = -(1 - V_MIN) * c.V10 / c.A1, (1 - V_MIN) * c.V20 / c.A2

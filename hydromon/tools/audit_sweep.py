@@ -30,9 +30,10 @@ defaults at its band's centre.
 both pressures) before the audit sees them, as a logger of that resolution would.
 
 ``--screen`` audits nothing: it prints how far the chosen records stand from the audit's refusals of a
-glitch and of a rig held at one command (``monitor.audit.auditable``): the largest excursion ratio of
-each measured channel and the smallest command of each part, each with its record, and the records the outlier
-gate mends first.
+glitch, of readings in other units and of a rig held at one command (``monitor.audit.auditable``): the
+largest excursion ratio of each measured channel, the largest reading over its sensor's span and the
+smallest pressures over p_s, and the smallest command of each part, each with its record, and the
+records the outlier gate mends first.
 
 A record counts as right when the audit names exactly its effect ("none" for clean records;
 both effects, in any order, for a pair). The last line times one full audit of a 60 s record
@@ -130,6 +131,7 @@ def _audit_one(args):
 
 def _screen_one(args):
     from monitor.audit.auditable import excitation_ratios, glitch_span, largest_excursion
+    from monitor.readings import range_ratios
     from monitor.outlier_gate import gated
     from monitor.audit.result import AuditOptions
 
@@ -138,14 +140,16 @@ def _screen_one(args):
     excursions = [largest_excursion(s[:, k], glitch_span(cfg.h)) for k in range(1, 5)]
     split = int(AuditOptions().train_fraction * len(s))
     return (args[0], [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split), drawn,
-            int(mended.sum()))
+            int(mended.sum()), range_ratios(s, cfg))
 
 
 def _print_screen(cases, screened, wall):
-    """The largest excursion ratio per channel and the smallest command per part over ``screened``
-    (index -> (excursions, excitation ratios per part, drawn, samples the outlier gate mended)),
-    each with its record, and the records the gate mended."""
+    """The largest excursion ratio per channel, the readings farthest toward a unit slip and the
+    smallest command per part over ``screened`` (index -> (excursions, excitation ratios per part,
+    drawn, samples the outlier gate mended, range ratios)), each with its record, and the records
+    the gate mended."""
     from monitor.audit.auditable import EXCITATION, GLITCH, STILL, held
+    from monitor.readings import PRESSURE_LOW, PRESSURE_NEGATIVE, RANGE
 
     def rec(i):
         kind, effects, _, _, noise, _ = cases[i]
@@ -156,6 +160,17 @@ def _print_screen(cases, screened, wall):
         i = max(screened, key=lambda j: screened[j][0][k])
         print(f"  {name}: largest excursion {screened[i][0][k]:.1f} times its 99th-percentile step (refused above "
               f"{GLITCH:g}): {rec(i)}")
+    ranges = {i: v[4] for i, v in screened.items()}
+    for key, what in (("x1", "x1 peaks at {:.2f} times x1_span"), ("x5", "x5 peaks at {:.2f} times x5_span"),
+                      ("p", "the pressures peak at {:.2f} times p_span")):
+        i = max(ranges, key=lambda j: ranges[j][key])
+        print(f"  {what.format(ranges[i][key])} (refused above {RANGE:g}): {rec(i)}")
+    i = min(ranges, key=lambda j: ranges[j]["p_peak"])
+    print(f"  the lower pressure peaks at {ranges[i]['p_peak']:.2f} times p_s at least (refused below "
+          f"{PRESSURE_LOW:g}): {rec(i)}")
+    i = min(ranges, key=lambda j: ranges[j]["p_low"])
+    print(f"  the lowest pressure reading is {ranges[i]['p_low']:.3f} times p_s (refused below "
+          f"-{PRESSURE_NEGATIVE:g}): {rec(i)}")
     for k, part in enumerate(("fitting", "held-out")):
         i = min(screened, key=lambda j: screened[j][1][k][0])
         asked, moved = screened[i][1][k]
@@ -165,7 +180,9 @@ def _print_screen(cases, screened, wall):
     mended = [i for i in sorted(screened) if screened[i][3]]
     print(f"  mended by the outlier gate first: {sum(screened[i][3] for i in mended)} sample(s) in {len(mended)} "
           f"record(s)" + "".join(f"; {rec(i)}" for i in mended[:5]) + ("; ..." if len(mended) > 5 else ""))
-    refused = sum(max(g) > GLITCH or any(held(r) for r in c) for g, c, _, _ in screened.values())
+    def unit_slip(r):
+        return max(r["x1"], r["x5"], r["p"]) > RANGE or r["p_peak"] < PRESSURE_LOW or r["p_low"] < -PRESSURE_NEGATIVE
+    refused = sum(max(g) > GLITCH or any(held(r) for r in c) or unit_slip(u) for g, c, _, _, u in screened.values())
     print(f"  refused: {refused} of {len(screened)}")
 
 
@@ -195,8 +212,8 @@ def main(argv=None):
     ap.add_argument("--fixed", action="store_true",
                     help="every record on its profile's default parameters at its band's centre (no draw)")
     ap.add_argument("--screen", action="store_true",
-                    help="audit nothing: print how far the records stand from the refusals of a glitch and of a rig "
-                         "held at one command")
+                    help="audit nothing: print how far the records stand from the refusals of a glitch, of readings "
+                         "in other units and of a rig held at one command")
     ap.add_argument("--round", default="", metavar="SPEC",
                     help="write each record's channels in whole steps first, as a logger of that resolution would: "
                          "e.g. x1=1e-6,x5=5e-7,p=400,ug=1e-3 (SI; p is both pressures)")

@@ -111,7 +111,7 @@ def audit(samples: np.ndarray, config: RigConfig | None = None, options: AuditOp
         # replaces it: a one-sample spike of a pressure 10 times its usual step reads as entrained
         # air; a dead channel, a dropout longer than the gate mends or a held rig is refused
         s, replaced = gated(s)
-        require_auditable(s, cfg.K_f, int(opt.train_fraction * len(s)), cfg.h)
+        require_auditable(s, cfg, int(opt.train_fraction * len(s)))
     eq = _Equations(s, cfg, opt.train_fraction)
     sig, split, cache, nominal, p_nom, theta0 = eq.sig, eq.split, eq.cache, eq.nominal, eq.p_nom, eq.theta0
     floors, nom_tr, nom_te = eq.floors, eq.nom_tr, eq.nom_te

@@ -1,9 +1,10 @@
 """What a record must be for the audit to judge a model by it; a record that is not is refused.
 
 The audit fits the model's equations on the first part of a record and compares how models
-simulate the rest, so it needs every sensor alive, no sample off its course, and a command that
-moves the rig in both parts. Each ``require_*`` raises ValueError saying what is wrong, where in
-the record, and what to give instead; none changes the samples. Pure functions, SI units.
+simulate the rest, so it needs every sensor alive, no sample off its course, readings in the
+units the rig's config gives (SI), and a command that moves the rig in both parts. Each
+``require_*`` raises ValueError saying what is wrong, where in the record, and what to give
+instead; none changes the samples. Pure functions, SI units.
 """
 
 from __future__ import annotations
@@ -12,11 +13,12 @@ import math
 
 import numpy as np
 
+from ..readings import unit_slip
 from .signals import noise_levels
 
-__all__ = ["require_auditable", "require_live_channels", "require_no_glitch", "require_excitation", "find_glitch",
-           "largest_excursion", "excitation_ratios", "held", "glitch_span", "GLITCH", "GLITCH_SPAN", "EXCITATION",
-           "STILL"]
+__all__ = ["require_auditable", "require_live_channels", "require_no_glitch", "require_in_range", "require_excitation",
+           "find_glitch", "largest_excursion", "excitation_ratios", "held", "glitch_span", "GLITCH", "GLITCH_SPAN",
+           "EXCITATION", "STILL"]
 
 CHANNELS = ("ug", "x1", "x3", "x4", "x5")
 # Both steps of a glitch exceed GLITCH times the channel's 99th-percentile step. Over 2052 simulated
@@ -154,6 +156,17 @@ def require_no_glitch(samples: np.ndarray, h: float) -> None:
                          f"of the rig; cut the record before or after it, or mend those samples")
 
 
+def require_in_range(samples: np.ndarray, cfg) -> None:
+    """Refuse (ValueError naming the channel, its reading and the config's constant) samples ``ug,
+    x1, x3, x4, x5`` whose readings the rig's config ``cfg`` cannot hold (``monitor.readings``): a
+    channel in other units than SI, or a config that is not the rig's. Models fitted to them fit
+    the units: pressures in bar read as a rig that does not obey the model, a spool in 0.01 mm
+    as a healthy valve of a hundred times the gain."""
+    why = unit_slip(samples, cfg)
+    if why is not None:
+        raise ValueError(why)
+
+
 def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) -> None:
     """Refuse (ValueError naming the part and its times) samples ``ug, x1, x3, x4, x5`` at period
     ``h`` [s] held at one command (``held``) in the part that fits (before sample ``split``) or
@@ -189,12 +202,15 @@ def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) ->
                 f"Audit a record whose command moves the rig in both parts {_PARTS}")
 
 
-def require_auditable(samples: np.ndarray, K_f: float, split: int, h: float) -> None:
+def require_auditable(samples: np.ndarray, cfg, split: int) -> None:
     """Every check of this module, in the order a person would mend the record: a dead sensor,
-    a glitch, then too little excitation (arguments as ``require_excitation``)."""
+    a glitch, readings the rig's config ``cfg`` cannot hold, then too little excitation (``split``
+    as ``require_excitation``)."""
     require_live_channels(samples)
     s = np.asarray(samples, dtype=float)
+    h = cfg.h
     if s.ndim != 2 or s.shape[1] != 5 or len(s) < 5 or not np.all(np.isfinite(s)) or not (h > 0 and math.isfinite(h)):
         return  # ``signals`` says what is wrong with these
     require_no_glitch(s, h)
-    require_excitation(s, K_f, split, h)
+    require_in_range(s, cfg)
+    require_excitation(s, cfg.K_f, split, h)

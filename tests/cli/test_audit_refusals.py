@@ -37,11 +37,13 @@ def _set(col, value):
     (lambda a: (a.__setitem__((slice(300, 340), 2), 0.0), a)[1], None,
      "rec.csv: x1 jumps -43.8 mm from sample 300 to 339 (t = 3.00-3.39 s) and back"),
     (_set(1, 2.5), None, "rec.csv: the rig is held at one command in the fitting part (t = 0.00-3.49 s)"),
+    (_set(3, lambda a: a[:, 3] / 1e5), None, "rec.csv: x3 never exceeds"),  # x3 in bar, x4 in Pa
+    (_set(5, lambda a: a[:, 5] * 100), None, "rec.csv: x5 reaches"),
 ])
 def test_audit_of_a_record_it_cannot_fit_names_the_file_and_why(tmp_path, capsys, mutate, rows, needle):
-    """A dead sensor, two pressures that read as one, too short a record, a dropout of x1 or a command
-    held at one value: one line naming the file, not numpy's "Singular matrix", an equation's row
-    count alone, or a cause the record cannot show."""
+    """A dead sensor, two pressures that read as one, too short a record, a dropout of x1, a command
+    held at one value or a channel in other units than SI: one line naming the file, not numpy's
+    "Singular matrix", an equation's row count alone, or a cause the record cannot show."""
     _moving_csv(tmp_path / "rec.csv", mutate, rows)
     assert main(["audit", str(tmp_path / "rec.csv")]) == 2
     cap = capsys.readouterr()

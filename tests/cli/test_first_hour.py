@@ -104,9 +104,12 @@ def test_evaluate_exits_0_graded_1_bad_input_or_too_short_2_usage(g2_run, tmp_pa
     assert main(["evaluate", str(ok), "--memory", "5"]) == 2
 
 
-def test_audit_exits_1_on_bad_input_as_evaluate_does(g2_run, tmp_path, capsys):
+def test_pressures_in_bar_are_refused_by_the_audit_naming_the_unit_and_not_trusted_by_evaluate(g2_run, tmp_path,
+                                                                                                 capsys):
     bar = _csv(tmp_path, g2_run, "bar.csv", scale=(1, 1, 1e-5, 1e-5, 1))
-    assert main(["audit", str(bar), "--json"]) == 1
+    assert main(["audit", str(bar), "--json"]) == 2  # refused before anything is fitted
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert "the pressures x3 and x4 never exceed" in err and "are they in bar, MPa or psi?" in err, err
     assert main(["evaluate", str(bar), "--json"]) == 1
 
 

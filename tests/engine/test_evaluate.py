@@ -15,7 +15,7 @@ from plant_sim.profiles import PaperVariable
 from plant_sim.simulate import simulate
 
 KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps", "implausible",
-        "x1_outside_chambers", "timestamp_jitter", "config_changes", "memory_s", "uncalibrated", "why"}
+        "x1_outside_chambers", "timestamp_jitter", "config_changes", "memory_s", "uncalibrated", "why", "units"}
 
 
 @pytest.fixture(scope="module")

@@ -177,9 +177,9 @@ def test_cli_exits_1_on_a_record_that_does_not_obey_the_model(tmp_path, capsys):
     from hydromon.cli.main import main
 
     _, run = hidden_case(3, "load_offset")
-    path = tmp_path / "bar.csv"
+    path = tmp_path / "neg.csv"
     from types import SimpleNamespace
-    write_csv(path, SimpleNamespace(t=run.t, samples=run.samples * np.array([1, 1, 1e-5, 1e-5, 1])))  # bar
+    write_csv(path, SimpleNamespace(t=run.t, samples=run.samples * np.array([1, -1, 1, 1, 1])))  # x1's sign turned
     assert main(["audit", str(path), "--json"]) == 1
     doc = json.loads(capsys.readouterr().out)  # still reported in full
     assert doc["cause"] == "unexplained" and "does not obey the model" in doc["note"]
@@ -357,10 +357,12 @@ def test_every_named_effect_improves_the_free_run(sweep_40):
     assert all(g > 0 for g in gains), gains
 
 
-@pytest.mark.parametrize("what, scale", [("x1 in mm", (1, 1e3, 1, 1, 1)), ("pressures in bar", (1, 1, 1e-5, 1e-5, 1))])
-def test_a_record_in_wrong_units_names_no_cause(what, scale):
-    # x1 in mm fits "sensor_delay" best and pressures in bar "load_offset", but such a record does
-    # not obey the model: the audit says so and names no cause
+@pytest.mark.parametrize("what, scale", [("x1 ten times too large", (1, 10, 1, 1, 1)),
+                                         ("x1's sign turned", (1, -1, 1, 1, 1)),
+                                         ("x5's sign turned", (1, 1, 1, 1, -1))])
+def test_a_record_in_wrong_units_or_signs_names_no_cause(what, scale):
+    # such a record does not obey the model: the audit says so and names no cause (x1 in mm and
+    # pressures in bar are refused before anything is fitted: test_audit_auditable.py)
     _, run = hidden_case(3, "load_offset")
     res = audit(run.samples * np.array(scale), run.config)
     assert res.cause == "unexplained" and not res.confident and not res.obeys, (what, res.cause, res.note)

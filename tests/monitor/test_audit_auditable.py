@@ -1,5 +1,5 @@
-"""What the audit refuses before it fits anything: a dead sensor, a glitch, a rig held at one command
-(``monitor.audit.auditable``). Each refusal says what, where and what to give instead; a
+"""What the audit refuses before it fits anything: a dead sensor, a glitch, a channel in other units,
+a rig held at one command (``monitor.audit.auditable``). Each refusal says what, where and what to give instead; a
 moving rig's record of any profile, band and noise level is never refused."""
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from monitor.audit import AuditOptions, audit
 from monitor.audit.auditable import (EXCITATION, GLITCH, STILL, excitation_ratios, find_glitch, largest_excursion,
                                      require_auditable, require_excitation, require_live_channels, require_no_glitch)
+from monitor.readings import RANGE
 
 CHANNELS = ("ug", "x1", "x3", "x4", "x5")
 
@@ -28,7 +29,7 @@ def _rec(profile="paper-var", noise="realistic", severity=0.3, kind="clean", see
 
 
 def _require(s, cfg, fraction=0.7):
-    require_auditable(s, cfg.K_f, int(fraction * len(s)), cfg.h)
+    require_auditable(s, cfg, int(fraction * len(s)))
 
 
 @pytest.mark.parametrize("profile", ["paper-id", "paper-var", "steps", "multisine"])
@@ -192,3 +193,50 @@ def test_a_record_too_short_says_so_before_anything_about_what_it_holds(n):
     """A few samples of a rig at rest are too short first, not held at one command or dead."""
     with pytest.raises(ValueError, match=f"^need at least 250 samples, got {n}$"):
         audit(np.ones((n, 5)))
+
+
+def _scaled(s, columns, factor):
+    out = np.array(s)
+    out[:, columns] *= factor
+    return out
+
+
+@pytest.mark.parametrize("kind", ["clean", "rig"])
+@pytest.mark.parametrize("columns, factor, said", [
+    ([1], 100.0, r"^x1 reaches [\d.]+ m, \d+ times its sensor's span x1_span = 0.1 m: is x1 in mm"),  # cm
+    ([1], 1000.0, r"^x1 reaches"),  # mm
+    ([4], 100.0, r"^x5 reaches [\d.]+ m, \d+ times its sensor's span x5_span = 0.001 m"),  # 0.01 mm
+    ([4], 1000.0, r"^x5 reaches"),
+    ([2, 3], 1e-5, r"^the pressures x3 and x4 never exceed [\d.]+ Pa, .* are they in bar, MPa or psi\?"),
+    ([2, 3], 1e-6, r"^the pressures x3 and x4 never exceed"),  # MPa
+    ([2, 3], 1 / 6894.76, r"^the pressures x3 and x4 never exceed"),  # psi
+    ([3], 1e-3, r"^x4 never exceeds [\d.]+ kPa, .* is it in bar"),  # one sensor in kPa
+    ([2, 3], 20.0, r"^the pressures reach [\d.]+ MPa, \d+ times the pressure sensors' span p_span"),
+    ([2], -1.0, r"^x3 falls to -[\d.]+ MPa, far below vacuum"),
+])
+def test_a_channel_in_other_units_than_si_is_refused_naming_it(kind, columns, factor, said):
+    """Pressures in bar read as a rig that does not obey the model, a spool in 0.01 mm as a healthy
+    valve of a hundred times the gain: the record is refused before anything is fitted, naming the
+    channel, its reading and the config constant it was held against; unmutated, it is taken."""
+    s, cfg = _rec(kind=kind, seed=7)
+    _require(s, cfg)
+    with pytest.raises(ValueError, match=said):
+        _require(_scaled(s, columns, factor), cfg)
+    with pytest.raises(ValueError, match=said.replace("^", "")):
+        audit(_scaled(s, columns, factor), cfg)
+
+
+@settings(max_examples=30, deadline=None)
+@given(channel=st.sampled_from([1, 4]), ratio=st.floats(0.2, 1e4))
+def test_a_reading_is_refused_above_range_times_its_span_and_taken_below(channel, ratio):
+    """A rig whose spool travels 3 mm against the default 1 mm span (one of the sweep's rigs of its own)
+    is taken: only a reading beyond RANGE times its sensor's span is read as a unit slip."""
+    s, cfg = _rec(seed=7)
+    key = {1: "x1_span", 4: "x5_span"}[channel]
+    peak = float(np.max(np.abs(s[:, channel])))
+    own = cfg.model_copy(update={key: peak / ratio})
+    if ratio < RANGE * 0.999:
+        _require(s, own)
+    elif ratio > RANGE * 1.001:
+        with pytest.raises(ValueError, match=f"^{CHANNELS[channel]} reaches .* {key} = "):
+            _require(s, own)

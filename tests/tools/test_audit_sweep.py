@@ -251,6 +251,11 @@ def test_a_screen_audits_nothing_and_says_how_far_the_records_stand_from_the_ref
     main(["--screen", "--quick", "--ladder", "load_offset", "--seed-base", "5"])
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("23 records screened in ") and out[0].endswith(" s (nothing audited)"), out[0]
-    heads = [line.split(":")[0].strip() for line in out[1:7]]
+    heads = [line.split(":")[0].strip() for line in out[1:5] + out[10:12]]
     assert heads == ["x1", "x3", "x4", "x5", "fitting part", "held-out part"], out
+    ranges = [line.split(" times ")[0].strip() for line in out[5:10]]
+    assert [r.rsplit(" ", 1)[0] for r in ranges] == [
+        "x1 peaks at", "x5 peaks at", "the pressures peak at", "the lower pressure peaks at",
+        "the lowest pressure reading is"], out
+    assert all(0.0 < float(r.rsplit(" ", 1)[1]) < 10.0 for r in ranges), out
     assert out[-2:] == ["  mended by the outlier gate first: 0 sample(s) in 0 record(s)", "  refused: 0 of 23"]

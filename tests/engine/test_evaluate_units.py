@@ -1,0 +1,48 @@
+"""``evaluate`` does not trust a record whose readings cannot be in its rig config's units
+(``monitor.readings``): a spool in 0.01 mm or pressures with their sign turned fit the model with
+the units in the parameters, and were graded as the correct record."""
+
+from __future__ import annotations
+
+import pytest
+
+from hydromon.contract import RigConfig
+from hydromon.engine.evaluate import evaluate
+from hydromon.engine.record import Recording
+from hydromon.report.evaluate import render, to_json
+from plant_sim.degradation import degrade
+from plant_sim.noise import noise_model
+from plant_sim.profiles import parse_profile
+from plant_sim.simulate import simulate
+
+
+@pytest.fixture(scope="module")
+def healthy():
+    return simulate(parse_profile("paper-var"), 20.0, params=degrade(0.05), noise=noise_model("realistic"), seed=1)
+
+
+def _scaled(run, columns, factor):
+    s = run.samples.copy()
+    s[:, columns] *= factor
+    return Recording("r", run.t, s, RigConfig(), "<test>")
+
+
+def test_a_healthy_record_in_si_is_trusted(healthy):
+    ev = evaluate(_scaled(healthy, [], 1.0))
+    assert ev.units is None and ev.status == "ok" and to_json(ev)["units"] is None
+
+
+@pytest.mark.parametrize("columns, factor, said", [
+    ([4], 100.0, "x5 reaches"),
+    ([2, 3], -1.0, "falls to -"),
+    ([1], 100.0, "x1 reaches"),
+    ([2, 3], 1e-5, "the pressures x3 and x4 never exceed"),
+])
+def test_a_record_in_other_units_is_bad_input_saying_which_reading(healthy, capsys, columns, factor, said):
+    ev = evaluate(_scaled(healthy, columns, factor))
+    doc = to_json(ev)
+    assert ev.status == doc["status"] == "bad-input"
+    assert said in doc["units"] and "hydromon reads " in doc["units"], doc["units"]
+    render(ev)
+    out = " ".join(capsys.readouterr().out.split())  # rich wraps at the terminal's width
+    assert "not to be trusted: " + " ".join(doc["units"].split()) in out, out
