@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RANGE", "PRESSURE_LOW", "PRESSURE_NEGATIVE", "range_ratios", "unit_slip"]
+__all__ = ["RANGE", "PRESSURE_LOW", "PRESSURE_NEGATIVE", "range_ratios", "unit_slip", "sample_limits", "beyond"]
 
 RANGE = 10.0
 PRESSURE_LOW = 0.05
@@ -52,14 +52,33 @@ def _pressure(p: float) -> str:
 
 
 def _config_tail(key: str, value: str) -> str:
-    return f" hydromon reads SI units (m, Pa); if the rig's {key} is not {value}, give its config (--config)"
+    return (f" hydromon reads SI units (m, Pa); if the rig's {key} is not {value}, its config must say so "
+            f"(--config FILE for a CSV)")
 
 
-def unit_slip(samples: np.ndarray, cfg) -> str | None:
+def sample_limits(cfg) -> np.ndarray:
+    """The bounds one sample is held against under the rig's config ``cfg`` (module docstring),
+    (4,): the largest |x1| [m], |x5| [m] and pressure [Pa], and the smallest pressure [Pa]."""
+    return np.array([RANGE * cfg.x1_span, RANGE * cfg.x5_span, RANGE * cfg.p_span, -PRESSURE_NEGATIVE * cfg.p_s])
+
+
+def beyond(samples: np.ndarray, limits: np.ndarray) -> np.ndarray:
+    """Which samples ``ug, x1, x3, x4, x5`` (N, 5) lie beyond their ``limits`` (N, 4) or (4,) of
+    ``sample_limits``, (N,) bool: the rules a single sample can break (a pressure that never
+    reaches PRESSURE_LOW of p_s takes a record to tell)."""
+    s = np.asarray(samples, dtype=float)
+    lim = np.broadcast_to(np.asarray(limits, dtype=float), (len(s), 4))
+    p = s[:, 2:4]
+    return ((np.abs(s[:, 1]) > lim[:, 0]) | (np.abs(s[:, 4]) > lim[:, 1]) | (p.max(axis=1) > lim[:, 2])
+            | (p.min(axis=1) < lim[:, 3]))
+
+
+def unit_slip(samples: np.ndarray, cfg, record: bool = True) -> str | None:
     """Why the readings of samples ``ug, x1, x3, x4, x5`` cannot be in the units of the rig's
     config ``cfg`` (module docstring), naming the channel, its reading and the constant it was
     held against; None when they can. Samples that are not (N, 5) finite numbers give None
-    (their reader says what is wrong with them)."""
+    (their reader says what is wrong with them). ``record`` False: only the rules a single
+    sample can break (``beyond``), for samples that are not a whole record."""
     s = np.asarray(samples, dtype=float)
     if s.ndim != 2 or s.shape[1] != 5 or not len(s) or not np.all(np.isfinite(s)):
         return None
@@ -74,7 +93,7 @@ def unit_slip(samples: np.ndarray, cfg) -> str | None:
         return (f"the pressures reach {_pressure(float(np.max(p)))}, {r['p']:.0f} times the pressure sensors' span "
                 f"p_span = {_pressure(cfg.p_span)}: are they in another unit than Pa?"
                 + _config_tail("p_span", _pressure(cfg.p_span)))
-    if r["p_peak"] < PRESSURE_LOW:
+    if record and r["p_peak"] < PRESSURE_LOW:
         peaks = np.max(np.abs(p), axis=0)
         low = [k for k in (0, 1) if peaks[k] < PRESSURE_LOW * cfg.p_s]
         who = "the pressures x3 and x4 never exceed" if len(low) == 2 else f"{_CHANNELS[2 + low[0]]} never exceeds"

@@ -2,26 +2,27 @@
 
 :class:`MonitorCore` has no clock, no threads and no I/O, so the live node
 (``hydromon.bus.monitor``), ``hydromon replay`` over the bus and ``hydromon replay --direct``
-all give the same health for the same message sequence, and tests drive it in memory.
-Payloads are validated by ``hydromon.engine.validate``; each rig's sequence numbers follow
+all give the same health for the same message sequence, and tests drive it in memory. Payloads
+are validated by ``hydromon.engine.validate``; each rig's sequence numbers follow
 ``hydromon.engine.sequence`` (a gap restarts the rig's filters, a restart its estimates); the
 status of a verdict is ``hydromon.engine.status``'s. A batch's regular samples take a faster
 path with the same result (``hydromon.engine.batch``).
 
 ``<ns>/rig/<id>/health`` and ``.../event`` keys are the monitors' own output (recordings hold
-them): they are skipped and counted as ``ignored``, not rejected. A rejected config leaves the rig graded on
-the constants it had (its next health says ``bad-input``); a rig whose x1 went beyond a
-chamber's end since its estimates (re)started says ``bad-input`` too (``X1_CLAMPED_WARNING``;
-the grade stays). The first health after a gap, and every one until ``stale_samples`` (default
-``eval_every``) samples have followed it, says ``stale``; so does the latest health re-sent by
-:meth:`MonitorCore.stale` for a rig that went silent (the node decides when:
-``hydromon.engine.watches.SilenceWatch``).
+them): they are skipped and counted as ``ignored``, not rejected. A rejected config leaves the
+rig graded on the constants it had (its next health says ``bad-input``); a rig whose x1 went
+beyond a chamber's end since its estimates (re)started says ``bad-input`` too
+(``X1_CLAMPED_WARNING``; the grade stays), and so does one whose readings keep breaking its
+config's bounds (a channel in other units: ``hydromon.engine.units_watch``). The first health
+after a gap, and every one until ``stale_samples`` (default ``eval_every``) samples have
+followed it, says ``stale``; so does the latest health re-sent by :meth:`MonitorCore.stale` for
+a rig that went silent (the node decides when: ``hydromon.engine.watches.SilenceWatch``).
 
-Health payloads carry finite numbers only (JSON has no NaN/inf): a parameter whose
-estimate or standard error is not finite (an equation without enough rows has infinite
-standard errors) is left out of ``params`` / ``std_errors``; confidence is clipped to
-[0, 1] (0 if not finite). ``seq`` and ``t`` are those of the sample after which the rig
-was evaluated; ``level`` is null and ``grade`` ``"unknown"`` when the level is -1.
+Health payloads carry finite numbers only (JSON has no NaN/inf): a parameter whose estimate or
+standard error is not finite (an equation without enough rows has infinite standard errors) is
+left out of ``params`` / ``std_errors``; confidence is clipped to [0, 1] (0 if not finite).
+``seq`` and ``t`` are those of the sample after which the rig was evaluated; ``level`` is null
+and ``grade`` ``"unknown"`` when the level is -1.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from hydromon.engine.frames import FrameInput
 from hydromon.engine.ranges_book import RangesBook
 from hydromon.engine.rig_table import ROW_STATE, Rig, RigTable
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, RESTART, SeqState, sequence_push
+from hydromon.engine.units_watch import UnitsWatch
 from hydromon.engine.validate import Rejected, decode_json, parse_sample
 from hydromon.engine.verdicts import Verdicts
 from monitor.drive import command_for_drive
@@ -57,7 +59,7 @@ _SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
 
 
-class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput):
+class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch):
     """The monitor without the bus: ``process(messages) -> [(health_key, payload)]``.
 
     Parameters
@@ -131,6 +133,9 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput):
         # sequence state per row (arrays, so a batch of regular samples is checked at once)
         for name, value, dtype in ROW_STATE:
             setattr(self, name, np.full(16, value, dtype=dtype))
+        # each row's bounds, set with its rig, and the tightest of them (hydromon.engine.units_watch)
+        self._limits, self._units_live = np.zeros((0, 4)), False
+        self._tight = np.array([np.inf, np.inf, np.inf, -np.inf])
         self._clear()
 
     # -- batch of accepted samples --------------------------------------------------------
@@ -163,6 +168,7 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput):
                 if mine.any():
                     kept.append(vals[mine])
         ev = self.fleet.update(rows, vals[:, 1:])
+        self._units_flagged(rows, vals, ev)
         if len(ev):
             self._health(ev, vals[:, 0], out)
         self._clear()
@@ -180,6 +186,7 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput):
     def _restarted(self, r: int) -> None:
         """Row r's estimates restarted (config change, seq restart): warn of it afresh."""
         self._clamp_warned[r] = False
+        self._units[r], self._units_windows[r], self._units_warned[r] = 0, 0, False
         self._back_n[r] = 0
         self._back_warned[r] = False
 

@@ -35,6 +35,9 @@ ROW_STATE = (
     ("_back_seq", -1, np.int64),       # the last of them
     ("_back_warned", False, np.bool_),  # warned of a seq going back
     ("_holding", False, np.bool_),     # samples held back by the sequence rule (in _held)
+    ("_units", 0, np.int64),           # samples beyond its config's bounds since its latest evaluation
+    ("_units_windows", 0, np.int64),   # evaluations that found a few beyond, since the estimates (re)started
+    ("_units_warned", False, np.bool_),  # warned of them (hydromon.engine.units_watch)
 )
 
 
@@ -99,6 +102,7 @@ class RigTable:
                 for name, value, dtype in ROW_STATE:
                     setattr(self, name, np.concatenate([getattr(self, name), np.full(grow, value, dtype=dtype)]))
             rig = self.rigs[rig_id] = Rig(row, config)
+            self._set_limits(row, config)
             if row < len(self._health_keys):
                 self._health_keys[row] = health_key(rig_id, self.namespace)
             else:
@@ -166,6 +170,7 @@ class RigTable:
         if rig is None or rig.config == config or (rig.config is None and config == RigConfig()):
             if rig is not None:
                 rig.config = config
+                self._set_limits(rig.row, config)
             return
         if self.on_warning is not None:  # a restart of the estimates: the operator should see why
             old = (rig.config or RigConfig()).model_dump()
@@ -176,6 +181,7 @@ class RigTable:
         self.fleet.set_config(rig.row, config)
         self._restarted(rig.row)
         rig.config = config
+        self._set_limits(rig.row, config)
         self.verdicts.apply(rig.row, config)  # ranges made for the old constants do not fit the new
         self._n[rig.row], self._gap[rig.row] = 0, -1
         self.counters.config_changes += 1

@@ -1,7 +1,8 @@
 """The status a health verdict carries, in order of precedence (``contract.STATUSES``).
 
 ``bad-input``: a message of the rig was rejected since its previous verdict, its estimates are
-physically impossible (``monitor.plausibility``), or its x1 went beyond a chamber's end;
+physically impossible (``monitor.plausibility``), its x1 went beyond a chamber's end, or its
+readings keep breaking its config's bounds (``hydromon.engine.units_watch``);
 ``stale``: the verdict follows a gap by fewer samples than the filters need, or the rig went
 silent; ``commissioning``: the monitor is commissioning the rig from its first samples (its
 grade is unknown until it has ranges); ``uncalibrated``: no health ranges were made for the
