@@ -24,11 +24,16 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RANGE", "PRESSURE_LOW", "PRESSURE_NEGATIVE", "range_ratios", "unit_slip", "sample_limits", "beyond"]
+__all__ = ["RANGE", "PRESSURE_LOW", "PRESSURE_NEGATIVE", "GLITCH_SAMPLES", "range_ratios", "unit_slip", "sample_limits",
+           "beyond"]
 
 RANGE = 10.0
 PRESSURE_LOW = 0.05
 PRESSURE_NEGATIVE = 0.1
+GLITCH_SAMPLES = 2
+"""Samples beyond the single-sample bounds that the live monitor takes for a glitch in one
+evaluation's window (``hydromon.engine.units_watch``; the outlier gate mends one sample, or two
+in a row on x1, x3 and x4), and ``evaluate`` in a record after the gate."""
 
 _CHANNELS = ("ug", "x1", "x3", "x4", "x5")
 
@@ -73,26 +78,33 @@ def beyond(samples: np.ndarray, limits: np.ndarray) -> np.ndarray:
             | (p.min(axis=1) < lim[:, 3]))
 
 
-def unit_slip(samples: np.ndarray, cfg, record: bool = True) -> str | None:
+def unit_slip(samples: np.ndarray, cfg, record: bool = True, allow: int = 0) -> str | None:
     """Why the readings of samples ``ug, x1, x3, x4, x5`` cannot be in the units of the rig's
     config ``cfg`` (module docstring), naming the channel, its reading and the constant it was
     held against; None when they can. Samples that are not (N, 5) finite numbers give None
     (their reader says what is wrong with them). ``record`` False: only the rules a single
-    sample can break (``beyond``), for samples that are not a whole record."""
+    sample can break (``beyond``), for samples that are not a whole record; ``allow``: samples
+    beyond those rules that are still a glitch (``GLITCH_SAMPLES`` where the live monitor's
+    judgement is wanted)."""
     s = np.asarray(samples, dtype=float)
     if s.ndim != 2 or s.shape[1] != 5 or not len(s) or not np.all(np.isfinite(s)):
         return None
     r = range_ratios(s, cfg)
-    for name, span, key in (("x1", cfg.x1_span, "x1_span"), ("x5", cfg.x5_span, "x5_span")):
-        if r[name] > RANGE:
-            peak = float(np.max(np.abs(s[:, _CHANNELS.index(name)])))
-            return (f"{name} reaches {peak:.3g} m, {r[name]:.0f} times its sensor's span {key} = {span:.3g} m: is "
-                    f"{name} in mm or another unit than m?" + _config_tail(key, f"{span:.3g} m"))
     p = s[:, 2:4]
-    if r["p"] > RANGE:
-        return (f"the pressures reach {_pressure(float(np.max(p)))}, {r['p']:.0f} times the pressure sensors' span "
-                f"p_span = {_pressure(cfg.p_span)}: are they in another unit than Pa?"
-                + _config_tail("p_span", _pressure(cfg.p_span)))
+    if int(np.count_nonzero(beyond(s, sample_limits(cfg)))) > allow:
+        for name, span, key in (("x1", cfg.x1_span, "x1_span"), ("x5", cfg.x5_span, "x5_span")):
+            if r[name] > RANGE:
+                peak = float(np.max(np.abs(s[:, _CHANNELS.index(name)])))
+                return (f"{name} reaches {peak:.3g} m, {r[name]:.0f} times its sensor's span {key} = {span:.3g} m: "
+                        f"is {name} in mm or another unit than m?" + _config_tail(key, f"{span:.3g} m"))
+        if r["p"] > RANGE:
+            return (f"the pressures reach {_pressure(float(np.max(p)))}, {r['p']:.0f} times the pressure sensors' "
+                    f"span p_span = {_pressure(cfg.p_span)}: are they in another unit than Pa?"
+                    + _config_tail("p_span", _pressure(cfg.p_span)))
+        k = 2 + int(np.argmin(np.min(p, axis=0)))
+        return (f"{_CHANNELS[k]} falls to {_pressure(float(np.min(s[:, k])))}, far below vacuum (-0.1 MPa gauge): a "
+                f"pressure logged with its sign turned, or with a zero offset; hydromon reads absolute (or gauge) "
+                f"pressures in Pa")
     if record and r["p_peak"] < PRESSURE_LOW:
         peaks = np.max(np.abs(p), axis=0)
         low = [k for k in (0, 1) if peaks[k] < PRESSURE_LOW * cfg.p_s]
@@ -101,9 +113,4 @@ def unit_slip(samples: np.ndarray, cfg, record: bool = True) -> str | None:
         return (f"{who} {_pressure(peak)}, {peak / cfg.p_s:.2g} times the supply pressure p_s = {_pressure(cfg.p_s)}: "
                 f"{'are they' if len(low) == 2 else 'is it'} in bar, MPa or psi?"
                 + _config_tail("p_s", _pressure(cfg.p_s)))
-    if r["p_low"] < -PRESSURE_NEGATIVE:
-        k = 2 + int(np.argmin(np.min(p, axis=0)))
-        return (f"{_CHANNELS[k]} falls to {_pressure(float(np.min(s[:, k])))}, far below vacuum (-0.1 MPa gauge): a "
-                f"pressure logged with its sign turned, or with a zero offset; hydromon reads absolute (or gauge) "
-                f"pressures in Pa")
     return None

@@ -17,7 +17,7 @@ from monitor.ident_options import IdentOptions
 from monitor.evaluations import Assessment, Events
 from monitor.outlier_gate import gated
 from monitor.pipeline import Pipeline
-from monitor.readings import unit_slip
+from monitor.readings import GLITCH_SAMPLES, unit_slip
 from monitor.refine import Refinement, refine
 
 __all__ = ["Evaluation", "evaluate"]
@@ -37,7 +37,7 @@ class Evaluation:
     x1_clamped: int = 0  # samples whose x1 would have emptied a chamber (config or x1 wrong)
     options: IdentOptions | None = None  # the identifier's options (None: defaults)
     uncalibrated: str | None = None  # why no ranges grade the rig (None: some do)
-    units: str | None = None  # why the readings (a lone glitch mended) cannot be in the config's units
+    units: str | None = None  # why the readings (glitches mended) cannot be in the config's units
 
     @property
     def status(self) -> str:
@@ -71,7 +71,8 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events,
                       pipe.fleet.ranges if why is None else None, pipe.fleet.x1_clamped(0), options,
                       uncalibrated=None if why is None else f"{why}; {COMMISSION_HINT}",
-                      units=unit_slip(gated(recording.samples, options, recording.restarts)[0], recording.config))
+                      units=unit_slip(gated(recording.samples, options, recording.restarts)[0], recording.config,
+                                      allow=GLITCH_SAMPLES))
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

@@ -27,12 +27,11 @@ from __future__ import annotations
 import numpy as np
 
 from hydromon.contract import RigConfig
-from monitor.readings import beyond, sample_limits, unit_slip
+from monitor.readings import GLITCH_SAMPLES, beyond, sample_limits, unit_slip
 
 __all__ = ["UNITS_GLITCH", "UNITS_WINDOWS", "UnitsWatch"]
 
-UNITS_GLITCH = 2  # samples beyond the bounds in one evaluation that are still a glitch (the outlier gate mends
-# one, or two in a row on x1, x3 and x4)
+UNITS_GLITCH = GLITCH_SAMPLES  # samples beyond the bounds in one evaluation that are still a glitch
 UNITS_WINDOWS = 3  # evaluations with more than UNITS_GLITCH beyond that make it a slip, not a sensor's dropout
 
 _DEFAULT = sample_limits(RigConfig())

@@ -46,3 +46,15 @@ def test_a_record_in_other_units_is_bad_input_saying_which_reading(healthy, caps
     render(ev)
     out = " ".join(capsys.readouterr().out.split())  # rich wraps at the terminal's width
     assert "not to be trusted: " + " ".join(doc["units"].split()) in out, out
+
+
+def test_samples_beyond_that_the_live_monitor_takes_for_a_glitch_are_not_a_unit_slip(healthy):
+    """Two spool samples beyond 10 mm (the outlier gate mends one on x5) are a glitch, as the live
+    monitor takes them (``GLITCH_SAMPLES``); a third makes them a reading the config cannot hold."""
+    from monitor.readings import GLITCH_SAMPLES
+
+    s = healthy.samples.copy()
+    s[700:700 + GLITCH_SAMPLES, 4] = 0.05
+    assert evaluate(Recording("r", healthy.t, s, RigConfig(), "<test>")).units is None
+    s[700 + GLITCH_SAMPLES, 4] = 0.05
+    assert "x5 reaches 0.05 m" in evaluate(Recording("r", healthy.t, s, RigConfig(), "<test>")).units
