@@ -37,7 +37,8 @@ class RigConfig(_Model):
         Sample rate of the published channels [Hz].
     x1_span, p_span, x5_span : float
         Full-scale span of the position [m], pressure [Pa] and spool [m] sensors; the
-        "stress" noise model is 0.1 % of these.
+        "stress" noise model is 0.1 % of these, and a reading beyond 10 times its sensor's
+        span is taken for one in other units (the rig's health says bad-input).
     """
 
     A1: float = Field(0.008, gt=0)
