@@ -2,9 +2,9 @@
 
 A channel logged in other units can still fit the model's equations, with the units in its
 parameters: on a healthy rig's 20 s record (``hydromon sim --severity 0.05 --profile paper-var
---noise realistic --seed 1 --duration 20 --to-csv h.csv``) the spool times 100 and both
-pressures with their sign turned were each graded ``health``, status ``ok``, as the record
-itself. Wrong units are rarely a factor near 1 (bar, MPa, kPa, psi, mm, cm), so a reading far
+--noise realistic --seed 1 --duration 20 --to-csv h.csv``) the estimates from the spool times
+100, and from both pressures with their sign turned, grade ``health`` with plausible values, as
+the record's own do. Wrong units are rarely a factor near 1 (bar, MPa, kPa, psi, mm, cm), so a reading far
 outside what the config's constants allow tells them:
 
 - x1 or x5 peaking above ``RANGE`` times its sensor's span (``x1_span``, ``x5_span``), or a

@@ -2,7 +2,7 @@
 whose samples keep breaking its config's bounds says ``bad-input`` and is warned of once.
 
 A spool logged in 0.01 mm or pressures with their sign turned fit the model with the units in
-the parameters and were graded as the right record (``health``, status ``ok``). Each sample is
+the parameters, and their estimates grade as the right record's would (``health``). Each sample is
 held against its rig's bounds: |x1| and |x5| at most 10 times their sensors' spans, the
 pressures at most 10 times p_span and at least -10 % of p_s
 (``monitor.readings.sample_limits``). An evaluation whose window (the rig's samples since its

@@ -161,7 +161,7 @@ def require_in_range(samples: np.ndarray, cfg) -> None:
     x1, x3, x4, x5`` whose readings the rig's config ``cfg`` cannot hold (``monitor.readings``): a
     channel in other units than SI, or a config that is not the rig's. Models fitted to them fit
     the units: pressures in bar read as a rig that does not obey the model, a spool in 0.01 mm
-    as a healthy valve of a hundred times the gain."""
+    as a clean record."""
     why = unit_slip(samples, cfg)
     if why is not None:
         raise ValueError(why)
