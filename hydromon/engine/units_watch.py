@@ -44,6 +44,12 @@ class UnitsWatch:
     _tight: np.ndarray  # (4,): the tightest of every bound any row was given (a batch within them is fine)
     _units_live: bool  # some row has samples beyond counted, or a slip established
 
+    def units_flagged(self) -> dict[str, int]:
+        """The rigs whose evaluations found more than UNITS_GLITCH samples beyond their config's
+        bounds since their estimates (re)started, with how many such evaluations, by rig id."""
+        return {rig_id: int(self._units_windows[r.row]) for rig_id, r in sorted(self.rigs.items())
+                if self._units_windows[r.row]}
+
     def _set_limits(self, row: int, config: RigConfig | None) -> None:
         """Row ``row`` is held against ``config``'s bounds (None: the reference rig's)."""
         if row >= len(self._limits):

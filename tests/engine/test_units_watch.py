@@ -120,3 +120,16 @@ def test_an_empty_batch_of_a_known_rig_changes_nothing(healthy):
     before = int(core._units[core.rigs["a"].row])
     assert core.process([]) == [] and int(core._units[core.rigs["a"].row]) == before > UNITS_GLITCH
     np.testing.assert_array_equal(core._limits[core.rigs["a"].row], sample_limits(RigConfig()))
+
+
+def test_the_monitor_s_exit_summary_names_the_rigs_whose_readings_broke_their_bounds(healthy):
+    from hydromon.cli.commands.monitor import units_line
+
+    core = MonitorCore(NS)
+    assert units_line(core) is None
+    out = core.process(_messages(healthy, _scaled(healthy, [2, 3], -1.0), rig="neg")[:200]
+                       + _messages(healthy, healthy.samples, rig="fine")[:200])
+    said = [orjson.loads(p)["status"] for k, p in out if k == f"{NS}/rig/neg/health"]
+    # every sample beyond: each evaluation that holds more than UNITS_GLITCH samples found them
+    assert list(core.units_flagged()) == ["neg"] and core.units_flagged()["neg"] == said.count("bad-input") >= 19
+    assert units_line(core).endswith(f": neg in {core.units_flagged()['neg']} evaluation(s)")

@@ -133,10 +133,20 @@ def run(args) -> int:
           f"restarts {c.restarts}" + (f"; silent rigs' health re-sent stale {c.stale_resent} time(s)"
                                       if c.stale_resent else "")
           + (f"; {c.forgotten} silent rig(s) forgotten" if c.forgotten else ""), file=sys.stderr)
-    line = x1_clamped_line(core)
-    if line:
-        print(f"hydromon monitor: {line}", file=sys.stderr)
+    for line in (x1_clamped_line(core), units_line(core)):
+        if line:
+            print(f"hydromon monitor: {line}", file=sys.stderr)
     return 0
+
+
+def units_line(core) -> str | None:
+    """The rigs whose readings broke their config's bounds, for the exit summary (None if none)."""
+    flagged = core.units_flagged()
+    if not flagged:
+        return None
+    return ("readings beyond the rig config's bounds (a channel in other units than SI, or a sensor span the "
+            "config does not give; their health said bad-input): "
+            + ", ".join(f"{rig} in {n} evaluation(s)" for rig, n in flagged.items()))
 
 
 def x1_clamped_line(core) -> str | None:
