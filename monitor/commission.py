@@ -38,7 +38,9 @@ from .audit.freerun import plant_from_params
 from .calibrate import identify_fleet, severities
 from .ident_options import IdentOptions
 from .evaluations import Assessment
+from .outlier_gate import gated
 from .pipeline import Pipeline
+from .readings import GLITCH_SAMPLES, unit_slip
 from .ranges import Estimate, ParamRange, Ranges
 from .refine import sensor_noise
 from .relative import REFERENCE_HEALTHY, relative_ranges
@@ -211,8 +213,9 @@ def commission(samples: np.ndarray, config: RigConfig, *, restarts=(), options: 
     progress : callable or None
         ``progress(done, total)`` with the twin's runs.
 
-    Raises ValueError (one line) for a record too short, one the identifier cannot converge
-    on, one with physically impossible estimates, or one that pins no graded parameter.
+    Raises ValueError (one line) for a record too short, one whose readings cannot be in the
+    config's units (``monitor.readings``), one the identifier cannot converge on, one with
+    physically impossible estimates, or one that pins no graded parameter.
     """
     samples = np.asarray(samples, dtype=float)
     if samples.ndim != 2 or samples.shape[1] != 5:
@@ -221,6 +224,9 @@ def commission(samples: np.ndarray, config: RigConfig, *, restarts=(), options: 
     if seconds < MIN_SECONDS:
         raise ValueError(f"a commissioning record of {seconds:.1f} s is too short: give at least {MIN_SECONDS:g} s "
                          "(30 s or more of the rig's usual motion pins its baseline well)")
+    slip = unit_slip(gated(samples, options, restarts)[0], config, allow=GLITCH_SAMPLES)
+    if slip is not None:  # its estimates would carry the units, and its ranges be made around them
+        raise ValueError(f"the record's readings cannot be in the rig config's units: {slip}")
     reference = reference or Ranges.default()
     pipe = Pipeline(config=config, options=options, ranges=None)
     _, a = pipe.run(samples, restarts)

@@ -57,6 +57,17 @@ def test_a_record_too_short_or_still_is_refused_naming_why():
         commission(still.samples[2000:], CFG, runs=0)
 
 
+@pytest.mark.parametrize("column, factor, said", [(5, 100.0, "x5 reaches"), (3, -1.0, "x3 falls to -")])
+def test_a_record_in_other_units_is_refused_before_ranges_are_made_around_them(column, factor, said):
+    """A spool in 0.01 mm or a pressure with its sign turned gives plausible estimates with the
+    units in them: ranges made around those would grade the rig's right readings as a fault."""
+    rec = simulate(PaperVariable(), 12.0, params=HEALTHY, config=CFG, noise=NOISE, seed=1)
+    s = rec.samples.copy()
+    s[:, column - 1] *= factor
+    with pytest.raises(ValueError, match=f"^the record's readings cannot be in the rig config's units: {said}"):
+        commission(s, CFG, runs=0)
+
+
 def test_a_parameter_the_record_cannot_pin_is_left_ungraded_with_the_input_that_would(commissioned):
     # B + f_v's bands are 0.8 % wide; 30 s at realistic noise does not pin its baseline that well
     c = commissioned
