@@ -114,9 +114,10 @@ def render() -> str:
         f"Grades: {', '.join(f'`{g}`' for g in GRADES)} (levels 0-4), and `unknown` (level null).",
         f"Statuses: {', '.join(f'`{s}`' for s in STATUSES)}. `bad-input` (before `stale`): a message on the rig's",
         "sample or frame key was rejected since its previous health, or its x1 went beyond a chamber's end (the rig",
-        "constants"
-        "or x1's zero, sign or unit are wrong; grade kept), or an estimate is physically impossible (a negative",
-        "compressibility, orifice coefficient or valve gain: input in wrong units or sign; grade `unknown`).",
+        "constants or x1's zero, sign or unit are wrong; grade kept), or its readings keep breaking its config's bounds",
+        "(x1 or x5 beyond 10 times its sensor's span, a pressure beyond 10 times `p_span` or below -10 % of `p_s`: a",
+        "channel in other units; grade kept), or an estimate is physically impossible (a negative compressibility,",
+        "orifice coefficient or valve gain: input in wrong units or sign; grade `unknown`).",
         "`stale`: the first health after a gap in the rig's `seq`, or the rig's latest health re-sent once when it",
         "has sent no sample for `hydromon monitor --stale-after` seconds (default 2; its grade and numbers are",
         "those of its last samples; the health query answers it too until the rig's next health).",
