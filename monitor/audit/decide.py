@@ -240,10 +240,27 @@ def _reach_words(f_reach: float) -> str:
             "would have been named")
 
 
+def _structured(struct: dict) -> list:
+    """The equations whose held-out residual keeps structure (step 9), with their shape."""
+    return [(g, s) for g, s in struct.items() if s["share"] > STRUCTURE[g] and abs(s["r"]) >= STRUCTURE_R]
+
+
 def _structure_words(struct: dict) -> str:
-    bad = [(g, s) for g, s in struct.items() if s["share"] > STRUCTURE[g] and abs(s["r"]) >= STRUCTURE_R]
     return "; ".join(f"the {g} equation {share_words(s['share'])}, correlated with {s['like']} (r = {s['r']:+.2f})"
-                     for g, s in bad)
+                     for g, s in _structured(struct))
+
+
+# what leaves a residual in each equation when no candidate of the library explains it, for a person
+# to look at first: the valve equation holds the command and the controller as much as the valve
+WHERE_TO_LOOK = {
+    "valve": ("the valve equation relates x5 to the valve input K_p (ug - K_f x1): a command logged in other units "
+              "or with an offset, a K_p or K_f that is not the rig's, or a controller with an integral term leaves "
+              "its residual there, as does a valve the model's second order does not describe"),
+    "force": ("the force equation holds friction, damping, stiffness and the load: a force the model does not have "
+              "(a friction that follows the pressures, a load that varies) leaves its residual there"),
+    "chamber": ("the chamber equations hold the flows: a leakage or a flow law the model does not have leaves its "
+                "residual there"),
+}
 
 
 def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, probe=None, reach=None,
@@ -280,7 +297,8 @@ def decide(results, p_nom, impossible, nominal, sig, split, cfg, opt, pair, prob
             best = results[0]
             said = (shadow.get(best.name) or passed_over_words(best) if best.score > need[best.name]
                     else f"best candidate {best.name} scores {best.score:.2f} <= {need[best.name]:g}")
-            note = f"no candidate of the library explains the residual: {shape} ({said})"
+            look = "; ".join(WHERE_TO_LOOK[g] for g, _ in _structured(struct))
+            note = f"no candidate of the library explains the residual: {shape} ({said}). Where to look: {look}"
             return Verdict("unexplained", (), True, note, note, struct)
         probed = _probed(probe, (), sig, split, results)
         if probed is not None:

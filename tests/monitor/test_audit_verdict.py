@@ -303,3 +303,21 @@ def test_pressures_logged_as_gauge_read_as_a_load_offset_and_the_words_say_so():
     assert res.cause == "load_offset", (res.cause, res.note)
     assert abs(res.effect["load_offset"] + (cfg.A1 - cfg.A2) * 1e5) < 0.25 * (cfg.A1 - cfg.A2) * 1e5, res.effect
     assert "or a pressure sensor's zero offset" in res.words, res.words
+
+
+@pytest.mark.parametrize("what, mutate", [("ug ten times too large", lambda ug: 10.0 * ug),
+                                          ("ug 1 V off", lambda ug: ug + 1.0)])
+def test_a_command_in_other_units_is_unexplained_in_the_valve_equation_with_where_to_look(what, mutate):
+    """A command logged in other units or with an offset passes the readings' checks (the config
+    gives ug no span) and fits no candidate: the valve equation keeps the residual, and the words
+    say what that equation holds, the command first, so a person looks at the logging before the
+    valve."""
+    s, cfg = _record("clean", {}, "paper-var", 0.3, "realistic", 5)
+    s = s.copy()
+    s[:, 0] = mutate(s[:, 0])
+    res = audit(s, cfg, AuditOptions(free_run=False))
+    assert res.cause == "unexplained" and "the valve equation leaves" in res.note, (what, res.note)
+    assert "Where to look: the valve equation relates x5 to the valve input K_p (ug - K_f x1): a command logged " \
+           "in other units or with an offset" in res.note, res.note
+    s0, _ = _record("clean", {}, "paper-var", 0.3, "realistic", 5)
+    assert audit(s0, cfg, AuditOptions(free_run=False)).cause == "none"  # the record as logged right
