@@ -38,9 +38,8 @@ from .audit.freerun import plant_from_params
 from .calibrate import identify_fleet, severities
 from .ident_options import IdentOptions
 from .evaluations import Assessment
-from .outlier_gate import gated
 from .pipeline import Pipeline
-from .readings import GLITCH_SAMPLES, unit_slip
+from .readings import record_slip
 from .ranges import Estimate, ParamRange, Ranges
 from .refine import sensor_noise
 from .relative import REFERENCE_HEALTHY, relative_ranges
@@ -224,7 +223,7 @@ def commission(samples: np.ndarray, config: RigConfig, *, restarts=(), options: 
     if seconds < MIN_SECONDS:
         raise ValueError(f"a commissioning record of {seconds:.1f} s is too short: give at least {MIN_SECONDS:g} s "
                          "(30 s or more of the rig's usual motion pins its baseline well)")
-    slip = unit_slip(gated(samples, options, restarts)[0], config, allow=GLITCH_SAMPLES)
+    slip = record_slip(samples, config, options, restarts)
     if slip is not None:  # its estimates would carry the units, and its ranges be made around them
         raise ValueError(f"the record's readings cannot be in the rig config's units: {slip}")
     reference = reference or Ranges.default()

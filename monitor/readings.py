@@ -24,8 +24,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RANGE", "PRESSURE_LOW", "PRESSURE_NEGATIVE", "GLITCH_SAMPLES", "range_ratios", "unit_slip", "sample_limits",
-           "beyond"]
+from hydromon.contract import CHANNELS
+
+__all__ = ["RANGE", "PRESSURE_LOW", "PRESSURE_NEGATIVE", "GLITCH_SAMPLES", "range_ratios", "unit_slip", "record_slip",
+           "sample_limits", "beyond"]
 
 RANGE = 10.0
 PRESSURE_LOW = 0.05
@@ -34,8 +36,6 @@ GLITCH_SAMPLES = 2
 """Samples beyond the single-sample bounds that the live monitor takes for a glitch in one
 evaluation's window (``hydromon.engine.units_watch``; the outlier gate mends one sample, or two
 in a row on x1, x3 and x4), and ``evaluate`` in a record after the gate."""
-
-_CHANNELS = ("ug", "x1", "x3", "x4", "x5")
 
 
 def range_ratios(samples: np.ndarray, cfg) -> dict[str, float]:
@@ -94,7 +94,7 @@ def unit_slip(samples: np.ndarray, cfg, record: bool = True, allow: int = 0) -> 
     if int(np.count_nonzero(beyond(s, sample_limits(cfg)))) > allow:
         for name, span, key in (("x1", cfg.x1_span, "x1_span"), ("x5", cfg.x5_span, "x5_span")):
             if r[name] > RANGE:
-                peak = float(np.max(np.abs(s[:, _CHANNELS.index(name)])))
+                peak = float(np.max(np.abs(s[:, CHANNELS.index(name)])))
                 return (f"{name} reaches {peak:.3g} m, {r[name]:.0f} times its sensor's span {key} = {span:.3g} m: "
                         f"is {name} in mm or another unit than m?" + _config_tail(key, f"{span:.3g} m"))
         if r["p"] > RANGE:
@@ -102,15 +102,24 @@ def unit_slip(samples: np.ndarray, cfg, record: bool = True, allow: int = 0) -> 
                     f"span p_span = {_pressure(cfg.p_span)}: are they in another unit than Pa?"
                     + _config_tail("p_span", _pressure(cfg.p_span)))
         k = 2 + int(np.argmin(np.min(p, axis=0)))
-        return (f"{_CHANNELS[k]} falls to {_pressure(float(np.min(s[:, k])))}, far below vacuum (-0.1 MPa gauge): a "
+        return (f"{CHANNELS[k]} falls to {_pressure(float(np.min(s[:, k])))}, far below vacuum (-0.1 MPa gauge): a "
                 f"pressure logged with its sign turned, or with a zero offset; hydromon reads absolute (or gauge) "
                 f"pressures in Pa")
     if record and r["p_peak"] < PRESSURE_LOW:
         peaks = np.max(np.abs(p), axis=0)
         low = [k for k in (0, 1) if peaks[k] < PRESSURE_LOW * cfg.p_s]
-        who = "the pressures x3 and x4 never exceed" if len(low) == 2 else f"{_CHANNELS[2 + low[0]]} never exceeds"
+        who = "the pressures x3 and x4 never exceed" if len(low) == 2 else f"{CHANNELS[2 + low[0]]} never exceeds"
         peak = float(max(peaks[k] for k in low))
         return (f"{who} {_pressure(peak)}, {peak / cfg.p_s:.2g} times the supply pressure p_s = {_pressure(cfg.p_s)}: "
                 f"{'are they' if len(low) == 2 else 'is it'} in bar, MPa or psi?"
                 + _config_tail("p_s", _pressure(cfg.p_s)))
     return None
+
+
+def record_slip(samples: np.ndarray, cfg, options=None, restarts=()) -> str | None:
+    """``unit_slip`` of a whole record as the identifier sees it: after the outlier gate
+    (``monitor.outlier_gate.gated`` with ``options`` and the ``restarts`` that follow gaps), with
+    GLITCH_SAMPLES samples beyond still a glitch, as the live monitor judges one evaluation's."""
+    from .outlier_gate import gated
+
+    return unit_slip(gated(samples, options, restarts)[0], cfg, allow=GLITCH_SAMPLES)

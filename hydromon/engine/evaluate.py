@@ -15,9 +15,8 @@ from hydromon.engine.status import health_status
 from monitor.grading import Ranges
 from monitor.ident_options import IdentOptions
 from monitor.evaluations import Assessment, Events
-from monitor.outlier_gate import gated
 from monitor.pipeline import Pipeline
-from monitor.readings import GLITCH_SAMPLES, unit_slip
+from monitor.readings import record_slip
 from monitor.refine import Refinement, refine
 
 __all__ = ["Evaluation", "evaluate"]
@@ -71,8 +70,7 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events,
                       pipe.fleet.ranges if why is None else None, pipe.fleet.x1_clamped(0), options,
                       uncalibrated=None if why is None else f"{why}; {COMMISSION_HINT}",
-                      units=unit_slip(gated(recording.samples, options, recording.restarts)[0], recording.config,
-                                      allow=GLITCH_SAMPLES))
+                      units=record_slip(recording.samples, recording.config, options, recording.restarts))
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

@@ -6,7 +6,7 @@ the parameters, and their estimates grade as the right record's would (``health`
 held against its rig's bounds: |x1| and |x5| at most 10 times their sensors' spans, the
 pressures at most 10 times p_span and at least -10 % of p_s
 (``monitor.readings.sample_limits``). An evaluation whose window (the rig's samples since its
-previous one) holds more than ``UNITS_GLITCH`` samples beyond them says ``bad-input``: one or
+previous one) holds more than ``GLITCH_SAMPLES`` samples beyond them says ``bad-input``: one or
 two are a glitch, which the outlier gate mends, wherever they come in a long run. From the
 ``UNITS_WINDOWS``-th such evaluation on, every one says it until the rig's estimates restart (a
 new config, a seq restart): a spool in 0.01 mm passes 10 mm only where it opens wide, and its
@@ -16,7 +16,7 @@ does not depend on how messages were batched. ``evaluate`` also tells pressures 
 (``monitor.plausibility``) tells those live.
 
 A mixin of :class:`hydromon.engine.core.MonitorCore`: ``_units`` (samples beyond since the rig's
-latest evaluation), ``_units_windows`` (evaluations that found more than UNITS_GLITCH) and
+latest evaluation), ``_units_windows`` (evaluations that found more than GLITCH_SAMPLES) and
 ``_units_warned`` (once per (re)start of its estimates) are rows of its ``ROW_STATE``; the
 bounds, ``_limits``, follow each rig's config. Neither is saved in a checkpoint: a restored rig
 that still breaks the bounds says so again as its evaluations find them.
@@ -29,10 +29,9 @@ import numpy as np
 from hydromon.contract import RigConfig
 from monitor.readings import GLITCH_SAMPLES, beyond, sample_limits, unit_slip
 
-__all__ = ["UNITS_GLITCH", "UNITS_WINDOWS", "UnitsWatch"]
+__all__ = ["UNITS_WINDOWS", "UnitsWatch"]
 
-UNITS_GLITCH = GLITCH_SAMPLES  # samples beyond the bounds in one evaluation that are still a glitch
-UNITS_WINDOWS = 3  # evaluations with more than UNITS_GLITCH beyond that make it a slip, not a sensor's dropout
+UNITS_WINDOWS = 3  # evaluations with more than GLITCH_SAMPLES beyond that make it a slip, not a sensor's dropout
 
 _DEFAULT = sample_limits(RigConfig())
 
@@ -45,7 +44,7 @@ class UnitsWatch:
     _units_live: bool  # some row has samples beyond counted, or a slip established
 
     def units_flagged(self) -> dict[str, int]:
-        """The rigs whose evaluations found more than UNITS_GLITCH samples beyond their config's
+        """The rigs whose evaluations found more than GLITCH_SAMPLES samples beyond their config's
         bounds since their estimates (re)started, with how many such evaluations, by rig id."""
         return {rig_id: int(self._units_windows[r.row]) for rig_id, r in sorted(self.rigs.items())
                 if self._units_windows[r.row]}
@@ -91,9 +90,9 @@ class UnitsWatch:
                 counts[0] += self._units[r]  # beyond since its evaluation in an earlier batch
             flagged = False
             for i, n in zip(ends.tolist(), counts.tolist()):
-                if n > UNITS_GLITCH:
+                if n > GLITCH_SAMPLES:
                     self._units_windows[r] += 1
-                if n > UNITS_GLITCH or self._units_windows[r] >= UNITS_WINDOWS:
+                if n > GLITCH_SAMPLES or self._units_windows[r] >= UNITS_WINDOWS:
                     self._b_status[i] = "bad-input"
                     flagged = True
             self._units[r] = (len(mine) - np.searchsorted(mine, ends[-1], side="right") if len(ends)
@@ -103,6 +102,6 @@ class UnitsWatch:
                 rig_id = self.fleet.ids[r]
                 words = unit_slip(vals[mine[0]:mine[0] + 1, 1:], self.rigs[rig_id].config or RigConfig(), record=False)
                 self.on_warning(rig_id, f"{words}; its health says bad-input while its evaluations find more than "
-                                        f"{UNITS_GLITCH} such samples, and from the {UNITS_WINDOWS}th such "
+                                        f"{GLITCH_SAMPLES} such samples, and from the {UNITS_WINDOWS}th such "
                                         "evaluation until its estimates restart")
         self._units_live = bool(self._units.any() or (self._units_windows >= UNITS_WINDOWS).any())

@@ -131,7 +131,7 @@ def _audit_one(args):
 
 def _screen_one(args):
     from monitor.audit.auditable import excitation_ratios, glitch_span, largest_excursion
-    from monitor.readings import range_ratios
+    from monitor.readings import range_ratios, unit_slip
     from monitor.outlier_gate import gated
     from monitor.audit.result import AuditOptions
 
@@ -140,14 +140,14 @@ def _screen_one(args):
     excursions = [largest_excursion(s[:, k], glitch_span(cfg.h)) for k in range(1, 5)]
     split = int(AuditOptions().train_fraction * len(s))
     return (args[0], [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split), drawn,
-            int(mended.sum()), range_ratios(s, cfg))
+            int(mended.sum()), range_ratios(s, cfg), unit_slip(s, cfg) is not None)
 
 
 def _print_screen(cases, screened, wall):
     """The largest excursion ratio per channel, the readings farthest toward a unit slip and the
     smallest command per part over ``screened`` (index -> (excursions, excitation ratios per part,
-    drawn, samples the outlier gate mended, range ratios)), each with its record, and the records
-    the gate mended."""
+    drawn, samples the outlier gate mended, range ratios, refused as in other units)), each with its
+    record, and the records the gate mended."""
     from monitor.audit.auditable import EXCITATION, GLITCH, STILL, held
     from monitor.readings import PRESSURE_LOW, PRESSURE_NEGATIVE, RANGE
 
@@ -180,9 +180,7 @@ def _print_screen(cases, screened, wall):
     mended = [i for i in sorted(screened) if screened[i][3]]
     print(f"  mended by the outlier gate first: {sum(screened[i][3] for i in mended)} sample(s) in {len(mended)} "
           f"record(s)" + "".join(f"; {rec(i)}" for i in mended[:5]) + ("; ..." if len(mended) > 5 else ""))
-    def unit_slip(r):
-        return max(r["x1"], r["x5"], r["p"]) > RANGE or r["p_peak"] < PRESSURE_LOW or r["p_low"] < -PRESSURE_NEGATIVE
-    refused = sum(max(g) > GLITCH or any(held(r) for r in c) or unit_slip(u) for g, c, _, _, u in screened.values())
+    refused = sum(max(g) > GLITCH or any(held(r) for r in c) or slip for g, c, _, _, _, slip in screened.values())
     print(f"  refused: {refused} of {len(screened)}")
 
 

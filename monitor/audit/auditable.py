@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from hydromon.contract import CHANNELS
+
 from ..readings import unit_slip
 from .signals import noise_levels
 
@@ -20,7 +22,6 @@ __all__ = ["require_auditable", "require_live_channels", "require_no_glitch", "r
            "find_glitch", "largest_excursion", "excitation_ratios", "held", "glitch_span", "GLITCH", "GLITCH_SPAN",
            "EXCITATION", "STILL"]
 
-CHANNELS = ("ug", "x1", "x3", "x4", "x5")
 # Both steps of a glitch exceed GLITCH times the channel's 99th-percentile step. Over 2052 simulated
 # records of the tuning sweeps (every profile, band, noise level, effect and rig size) no pair of
 # opposite steps within GLITCH_SPAN came above 14 times it; a one-sample spike of 1 m in x1, 900
@@ -210,7 +211,7 @@ def require_auditable(samples: np.ndarray, cfg, split: int) -> None:
     s = np.asarray(samples, dtype=float)
     h = cfg.h
     if s.ndim != 2 or s.shape[1] != 5 or len(s) < 5 or not np.all(np.isfinite(s)) or not (h > 0 and math.isfinite(h)):
-        return  # ``signals`` says what is wrong with these
+        return  # ``signals`` says what is wrong with these (a config at an infinite sample rate has h = 0)
     require_no_glitch(s, h)
     require_in_range(s, cfg)
     require_excitation(s, cfg.K_f, split, h)

@@ -12,8 +12,7 @@ from hydromon.contract import RigConfig
 from hydromon.engine.core import MonitorCore
 from hydromon.engine.frames import frame_payload
 from hydromon.engine.samples import sample_payload
-from hydromon.engine.units_watch import UNITS_GLITCH
-from monitor.readings import sample_limits
+from monitor.readings import GLITCH_SAMPLES, sample_limits
 from plant_sim.degradation import degrade
 from plant_sim.noise import noise_model
 from plant_sim.profiles import parse_profile
@@ -70,7 +69,7 @@ def test_the_same_record_in_si_and_one_with_a_lone_glitch_are_trusted(healthy):
     s = healthy.samples.copy()
     s[500, 3] = -16e6  # one sample far below vacuum: the outlier gate's, not a unit slip
     for k in range(600, 1000, 50):  # and glitches the gate mends, again and again: a pair of x4, one of x5
-        s[k:k + UNITS_GLITCH, 3] = -16e6
+        s[k:k + GLITCH_SAMPLES, 3] = -16e6
         s[k + 25, 4] = 0.05  # (within the contract's |x5| <= 0.1 m, which rejects the sample)
     _, status, warnings = _run(_messages(healthy, s), batch=50)
     assert "bad-input" not in status and warnings == []
@@ -118,7 +117,7 @@ def test_an_empty_batch_of_a_known_rig_changes_nothing(healthy):
     core = MonitorCore(NS)
     core.process(_messages(healthy, _scaled(healthy, [4], 100.0))[:100])
     before = int(core._units[core.rigs["a"].row])
-    assert core.process([]) == [] and int(core._units[core.rigs["a"].row]) == before > UNITS_GLITCH
+    assert core.process([]) == [] and int(core._units[core.rigs["a"].row]) == before > GLITCH_SAMPLES
     np.testing.assert_array_equal(core._limits[core.rigs["a"].row], sample_limits(RigConfig()))
 
 
@@ -130,6 +129,6 @@ def test_the_monitor_s_exit_summary_names_the_rigs_whose_readings_broke_their_bo
     out = core.process(_messages(healthy, _scaled(healthy, [2, 3], -1.0), rig="neg")[:200]
                        + _messages(healthy, healthy.samples, rig="fine")[:200])
     said = [orjson.loads(p)["status"] for k, p in out if k == f"{NS}/rig/neg/health"]
-    # every sample beyond: each evaluation that holds more than UNITS_GLITCH samples found them
+    # every sample beyond: each evaluation that holds more than GLITCH_SAMPLES samples found them
     assert list(core.units_flagged()) == ["neg"] and core.units_flagged()["neg"] == said.count("bad-input") >= 19
     assert units_line(core).endswith(f": neg in {core.units_flagged()['neg']} evaluation(s)")

@@ -11,12 +11,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hydromon.contract import CHANNELS
 from monitor.audit import AuditOptions, audit
 from monitor.audit.auditable import (EXCITATION, GLITCH, STILL, excitation_ratios, find_glitch, largest_excursion,
                                      require_auditable, require_excitation, require_live_channels, require_no_glitch)
 from monitor.readings import RANGE
 
-CHANNELS = ("ug", "x1", "x3", "x4", "x5")
 
 
 @lru_cache(maxsize=None)
