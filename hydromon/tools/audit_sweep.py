@@ -139,7 +139,7 @@ def _screen_one(args):
     s, mended = gated(s)  # as the audit sees it: lone glitches mended
     excursions = [largest_excursion(s[:, k], glitch_span(cfg.h)) for k in range(1, 5)]
     split = int(AuditOptions().train_fraction * len(s))
-    return (args[0], [0.0 if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split), drawn,
+    return (args[0], [None if g is None else g[3] for g in excursions], excitation_ratios(s, cfg.K_f, split), drawn,
             int(mended.sum()), range_ratios(s, cfg), unit_slip(s, cfg) is not None)
 
 
@@ -157,7 +157,11 @@ def _print_screen(cases, screened, wall):
 
     print(f"{len(screened)} records screened in {wall:.0f} s (nothing audited)")
     for k, name in enumerate(("x1", "x3", "x4", "x5")):
-        i = max(screened, key=lambda j: screened[j][0][k])
+        measured = [j for j in screened if screened[j][0][k] is not None]
+        if not measured:  # no large step of the channel is met by an opposite one within a glitch's span
+            print(f"  {name}: no excursion in any record (refused above {GLITCH:g})")
+            continue
+        i = max(measured, key=lambda j: screened[j][0][k])
         print(f"  {name}: largest excursion {screened[i][0][k]:.1f} times its 99th-percentile step (refused above "
               f"{GLITCH:g}): {rec(i)}")
     ranges = {i: v[4] for i, v in screened.items()}
@@ -180,7 +184,8 @@ def _print_screen(cases, screened, wall):
     mended = [i for i in sorted(screened) if screened[i][3]]
     print(f"  mended by the outlier gate first: {sum(screened[i][3] for i in mended)} sample(s) in {len(mended)} "
           f"record(s)" + "".join(f"; {rec(i)}" for i in mended[:5]) + ("; ..." if len(mended) > 5 else ""))
-    refused = sum(max(g) > GLITCH or any(held(r) for r in c) or slip for g, c, _, _, _, slip in screened.values())
+    refused = sum(max((e for e in g if e is not None), default=0.0) > GLITCH or any(held(r) for r in c) or slip
+                  for g, c, _, _, _, slip in screened.values())
     print(f"  refused: {refused} of {len(screened)}")
 
 

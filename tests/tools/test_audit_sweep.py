@@ -259,3 +259,18 @@ def test_a_screen_audits_nothing_and_says_how_far_the_records_stand_from_the_ref
         "the lowest pressure reading is"], out
     assert all(0.0 < float(r.rsplit(" ", 1)[1]) < 10.0 for r in ranges), out
     assert out[-2:] == ["  mended by the outlier gate first: 0 sample(s) in 0 record(s)", "  refused: 0 of 23"]
+
+
+def test_a_screen_says_so_when_no_record_has_an_excursion_of_a_channel(capsys):
+    from hydromon.tools.audit_sweep import _print_screen
+
+    cases = [("clean", {}, "steps", 0.1, "none", None)] * 2
+    ranges = {"x1": 0.5, "x5": 0.5, "p": 0.9, "p_peak": 0.4, "p_low": 0.01}
+    screened = {i: ([2.0 + i, 3.0, None, 60.0 * i], ((50.0, 40.0), (50.0, 40.0)), "steps", 0, ranges, False)
+                for i in range(2)}
+    _print_screen(cases, screened, 1.0)
+    out = capsys.readouterr().out.splitlines()
+    assert out[1].startswith("  x1: largest excursion 3.0 times"), out[1]
+    assert out[1].endswith("record 1 (clean steps, noise none)"), out[1]
+    assert out[3] == "  x4: no excursion in any record (refused above 50)", out[3]
+    assert out[-1] == "  refused: 1 of 2", out  # x5's 60 is past the glitch ratio
