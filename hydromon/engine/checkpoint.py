@@ -2,7 +2,8 @@
 
 :func:`snapshot` takes every rig's whole state from a :class:`~hydromon.engine.core.MonitorCore`
 between two ``process`` calls: its estimator row (``monitor.layout``), its grading hysteresis, its
-sequence state (last seq, samples since a restart or gap), its announced grade and status, its
+sequence state (last seq, samples since a restart or gap), its units watch's counts
+(``hydromon.engine.units_watch``), its announced grade and status, its
 latest health, and the config it sent (a rig sends its config once, so a restarted monitor that
 forgot it would grade the rig on the wrong constants). :func:`encode` writes it as an ``.npz``
 archive of plain arrays plus one JSON document (read back with ``allow_pickle=False``: no code
@@ -29,16 +30,21 @@ import numpy as np
 import orjson
 
 from hydromon.contract import RigConfig
+from hydromon.engine.rig_table import ROW_STATE
 from monitor.layout import LAYOUT_VERSION
 
 __all__ = ["FORMAT", "Checkpoint", "CheckpointRefused", "decode", "encode", "restore", "snapshot"]
 
-FORMAT = 1
-"""Version of the checkpoint file itself (its arrays and JSON fields)."""
+FORMAT = 2
+"""Version of the checkpoint file itself (its arrays and JSON fields). Format 1 is read too: it
+lacks the units watch's three columns, which restore as a rig's fresh values (no samples beyond
+its bounds counted, no warning given)."""
 
 # the core's per-row sequence state saved with each rig (``hydromon.engine.rig_table.ROW_STATE``);
 # ``_holding`` is not: samples held back are not saved, they are part of the gap
-_ROW_FIELDS = ("_last", "_n", "_gap", "_bad", "_clamp_warned", "_back_n", "_back_seq", "_back_warned")
+_ROW_FIELDS = ("_last", "_n", "_gap", "_bad", "_clamp_warned", "_back_n", "_back_seq", "_back_warned",
+               "_units", "_units_windows", "_units_warned")
+_FIELDS_OF = {1: 8, FORMAT: len(_ROW_FIELDS)}  # the columns of ``rows`` in each format read
 
 
 class CheckpointRefused(ValueError):
@@ -126,16 +132,21 @@ def decode(data: bytes) -> Checkpoint:
         meta = orjson.loads(arrays.pop("meta").tobytes())
     except Exception as exc:  # numpy and zipfile raise many kinds on a damaged archive
         raise CheckpointRefused(f"not a readable checkpoint ({type(exc).__name__}: {exc})") from None
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+    if not isinstance(meta, dict) or meta.get("format") not in _FIELDS_OF:
         raise CheckpointRefused(f"checkpoint format {meta.get('format') if isinstance(meta, dict) else '?'}; "
-                                f"this monitor reads format {FORMAT}")
+                                f"this monitor reads formats {', '.join(map(str, sorted(_FIELDS_OF)))}")
     if meta.get("layout") != LAYOUT_VERSION:
         raise CheckpointRefused(f"estimator state layout {meta.get('layout')}; this monitor's is {LAYOUT_VERSION} "
                                 "(saved by another version of hydromon)")
     n = len(meta.get("rigs", ()))
-    if any(len(a) != n for a in arrays.values()) or arrays["rows"].shape[1:] != (len(_ROW_FIELDS),):
+    if any(len(a) != n for a in arrays.values()) or arrays["rows"].shape[1:] != (_FIELDS_OF[meta["format"]],):
         raise CheckpointRefused("checkpoint arrays disagree with its list of rigs")
-    return Checkpoint(meta, **arrays)
+    rows = arrays["rows"]
+    if rows.shape[1] < len(_ROW_FIELDS):  # an older format: the missing columns as a new rig's
+        fresh = {name: value for name, value, _ in ROW_STATE}
+        rest = np.array([int(fresh[name]) for name in _ROW_FIELDS[rows.shape[1]:]], dtype=np.int64)
+        arrays["rows"] = np.concatenate([rows, np.tile(rest, (n, 1))], axis=1)
+    return Checkpoint({**meta, "format": FORMAT}, **arrays)
 
 
 def restore(core, ckpt: Checkpoint) -> list[tuple[str, str]]:
@@ -190,4 +201,5 @@ def restore(core, ckpt: Checkpoint) -> list[tuple[str, str]]:
         ann._count[r] = int(count)
         if meta["latest"][i] is not None:
             core.latest[rig_id] = meta["latest"][i].encode()
+    core._refresh_units_live()
     return refused

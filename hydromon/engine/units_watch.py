@@ -18,8 +18,9 @@ does not depend on how messages were batched. ``evaluate`` also tells pressures 
 A mixin of :class:`hydromon.engine.core.MonitorCore`: ``_units`` (samples beyond since the rig's
 latest evaluation), ``_units_windows`` (evaluations that found more than GLITCH_SAMPLES) and
 ``_units_warned`` (once per (re)start of its estimates) are rows of its ``ROW_STATE``; the
-bounds, ``_limits``, follow each rig's config. Neither is saved in a checkpoint: a restored rig
-that still breaks the bounds says so again as its evaluations find them.
+bounds, ``_limits``, follow each rig's config. The three rows are saved in a checkpoint
+(``hydromon.engine.checkpoint``): a restored rig whose slip was established says so from its
+first evaluation, as one that ran on through the same gap does.
 """
 
 from __future__ import annotations
@@ -58,6 +59,10 @@ class UnitsWatch:
         self._tight = np.array([min(self._tight[0], lim[0]), min(self._tight[1], lim[1]),
                                 min(self._tight[2], lim[2]), max(self._tight[3], lim[3])])
 
+    def _refresh_units_live(self) -> None:
+        """Whether any row needs its samples held to its own bounds (also after a checkpoint set the rows)."""
+        self._units_live = bool(self._units.any() or (self._units_windows >= UNITS_WINDOWS).any())
+
     def _within_tightest(self, vals: np.ndarray) -> bool:
         """Every sample of ``vals`` (m, 6: t, ug, x1, x3, x4, x5) within the tightest bounds: the
         common case, told without taking each sample's own (a replay of 300,000 samples a second
@@ -80,7 +85,7 @@ class UnitsWatch:
         # evaluated now, with samples beyond from an earlier batch or a slip already established
         carried = ev_rig[(self._units[ev_rig] > 0) | (self._units_windows[ev_rig] >= UNITS_WINDOWS)]
         if not len(idx) and not len(carried):
-            self._units_live = bool(self._units.any() or (self._units_windows >= UNITS_WINDOWS).any())
+            self._refresh_units_live()
             return
         for r in np.union1d(brow, carried).tolist():
             mine = idx[brow == r]  # this rig's samples beyond, in batch order
@@ -104,4 +109,4 @@ class UnitsWatch:
                 self.on_warning(rig_id, f"{words}; its health says bad-input while its evaluations find more than "
                                         f"{GLITCH_SAMPLES} such samples, and from the {UNITS_WINDOWS}th such "
                                         "evaluation until its estimates restart")
-        self._units_live = bool(self._units.any() or (self._units_windows >= UNITS_WINDOWS).any())
+        self._refresh_units_live()

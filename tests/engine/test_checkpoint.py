@@ -104,6 +104,31 @@ def test_another_layout_or_format_or_damaged_bytes_are_refused(messages):
             decode(bad)
 
 
+def test_a_format_1_checkpoint_without_the_units_watch_s_counts_is_read_as_fresh_counts(messages):
+    before, after = _split(messages, 6.0, 7.0)
+    first = MonitorCore()
+    first.process(before)
+    with np.load(io.BytesIO(encode(snapshot(first)))) as z:
+        arrays = dict(z)
+    meta = orjson.loads(arrays["meta"].tobytes())
+    meta["format"] = 1
+    arrays["meta"] = np.frombuffer(orjson.dumps(meta), dtype=np.uint8)
+    arrays["rows"] = arrays["rows"][:, :8]  # format 1 kept the sequence state only
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    old = decode(buf.getvalue())
+    assert old.meta["format"] == 2 and old.rows.shape == (len(old.rigs), 11) and not old.rows[:, 8:].any()
+    arrays["rows"] = arrays["rows"][:, :7]
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    with pytest.raises(CheckpointRefused, match="disagree"):
+        decode(buf.getvalue())
+    restarted, through = MonitorCore(), MonitorCore()
+    assert restore(restarted, old) == []
+    through.process(before)
+    assert restarted.process(after) == through.process(after)  # in SI, nothing was counted to lose
+
+
 def test_a_rig_whose_saved_constants_its_config_no_longer_gives_is_refused_alone(messages):
     first = MonitorCore()
     first.process(_split(messages, 3.0, 3.0)[0])

@@ -132,3 +132,34 @@ def test_the_monitor_s_exit_summary_names_the_rigs_whose_readings_broke_their_bo
     # every sample beyond: each evaluation that holds more than GLITCH_SAMPLES samples found them
     assert list(core.units_flagged()) == ["neg"] and core.units_flagged()["neg"] == said.count("bad-input") >= 19
     assert units_line(core).endswith(f": neg in {core.units_flagged()['neg']} evaluation(s)")
+
+
+def test_a_rig_restored_from_a_checkpoint_keeps_its_slip_and_its_warning(healthy):
+    """As a monitor that ran on through the same gap: its health byte for byte, and no second
+    warning."""
+    from hydromon.engine.checkpoint import decode, encode, restore, snapshot
+    from hydromon.engine.units_watch import UNITS_WINDOWS
+
+    s = healthy.samples.copy()
+    s[:, 4] *= 30  # beyond 10 mm only where the spool opens more than 0.33 mm: some windows only
+    msgs = _messages(healthy, s)
+    cut, back = 600, 700
+    through = MonitorCore(NS)
+    through.process(msgs[:cut])
+    expected = through.process(msgs[back:])
+    first = MonitorCore(NS)
+    first.process(msgs[:cut])
+    assert first.units_flagged()["a"] >= UNITS_WINDOWS
+    warnings = []
+    restarted = MonitorCore(NS, on_warning=lambda rig, msg: warnings.append((rig, msg)))
+    assert restore(restarted, decode(encode(snapshot(first)))) == []
+    got = restarted.process(msgs[back:])
+    assert got == expected and warnings == []
+    status = [orjson.loads(p)["status"] for k, p in got if k.endswith("/health")]
+    assert set(status) == {"bad-input"}, status
+    forgot = decode(encode(snapshot(first)))  # as restored without the watch's counts
+    forgot.rows[:, -3:] = 0
+    fresh = MonitorCore(NS)
+    restore(fresh, forgot)
+    status = [orjson.loads(p)["status"] for k, p in fresh.process(msgs[back:]) if k.endswith("/health")]
+    assert "ok" in status, status  # the slip forgotten, its readings trusted between the spool's wide openings
