@@ -7,7 +7,8 @@ open). Headless Chromium (Playwright) checks: the fleet page shows every rig at 
 press-7's change reaches the open page without a reload and the events page lists it (and
 takes an acknowledgement with a comment, kept in the event log); a rig
 page draws its parameter plots (pixels of a screenshot); killing the monitor flags its rigs
-``no monitor`` within 2 s; no page logs a JavaScript error; a dashboard restarted on the same
+``no monitor`` within 2 s; no page logs a JavaScript error; stopping the dashboard greys the open
+pages, which say since when and keep their ages counting; a dashboard restarted on the same
 state directory shows the acknowledgement.
 
 The grade event on the events page is the monitor's own (``<ns>/rig/<id>/event``), heard on the
@@ -147,8 +148,21 @@ def test_pages_in_a_browser_against_router_sim_monitor_dashboard_processes(tmp_p
                     assert w.errors == [], w.errors
                     assert w.dialogs == []
 
-                # a restarted dashboard shows the acknowledged event, comment and all, from its log
+                # the dashboard server goes: the open pages say since when, grey what they show (the
+                # grades as they were then, not live), and their ages keep counting
                 procs.stop("dashboard")
+                for w in (fleet, rig):
+                    wait_for(lambda w=w: w.page.evaluate("() => document.body.classList.contains('offline')"), 10,
+                             "the page marked offline")
+                    conn = w.page.evaluate("() => document.querySelector('#conn').textContent")
+                    assert conn.startswith("disconnected from the dashboard server since "), conn
+                ages = """() => [document.querySelector('#fleet tbody tr').children[6].textContent]"""
+                said = (fleet.page.evaluate(ages), rig.page.evaluate("() => document.querySelector('#since').textContent"))
+                time.sleep(2.5)
+                now = (fleet.page.evaluate(ages), rig.page.evaluate("() => document.querySelector('#since').textContent"))
+                assert now[0] != said[0] and now[1] != said[1], (said, now)
+
+                # a restarted dashboard shows the acknowledged event, comment and all, from its log
                 url2 = procs.dashboard("dashboard2", "--state-dir", str(tmp_path / "state"), *bus)
                 again = Watched(ctx)
                 again.page.goto(url2 + "events")

@@ -61,22 +61,46 @@ function showSource(info) {
   else if (info.source === "bus") setText(e, "live: " + info.namespace + "/rig/" + info.rigs);
 }
 
-// the push channel: a snapshot first, then what changed; reconnects (and gets a new snapshot)
-function connect(params, onMessage) {
+// the server's clock as last heard [s since the epoch]: a live source's clock runs on with the
+// browser's while no message comes (so ages keep counting when the server is gone); a
+// recording's stands at its end
+const heard = {now: 0, at: 0, live: false};
+function pageNow() {
+  return heard.live ? heard.now + Math.max(0, Date.now() / 1000 - heard.at) : heard.now;
+}
+
+// the push channel: a snapshot first, then what changed; reconnects (and gets a new snapshot).
+// While it is down the page says since when, greys what it shows (the grades are as they were
+// then, not live) and calls onOffline every second so that ages keep counting.
+function connect(params, onMessage, onOffline) {
   const conn = document.getElementById("conn");
-  let delay = 500;
+  let delay = 500, downSince = null, ticker = null;
   function open() {
     const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws?" + new URLSearchParams(params);
     const ws = new WebSocket(url);
-    ws.onopen = () => { delay = 500; conn.className = ""; setText(conn, "live"); };
+    ws.onopen = () => { delay = 500; };
     ws.onmessage = (ev) => {
       const msg = JSON.parse(ev.data);
-      if (msg.info) showSource(msg.info);
+      if (msg.info) { showSource(msg.info); heard.live = msg.info.source === "bus"; }
+      if (typeof msg.now === "number") { heard.now = msg.now; heard.at = Date.now() / 1000; }
+      if (downSince !== null || conn.className !== "") {  // back: the snapshot that came first is current
+        downSince = null;
+        clearInterval(ticker);
+        document.body.classList.remove("offline");
+        conn.className = "";
+      }
+      setText(conn, heard.live ? "live" : "recording");
       onMessage(msg);
     };
     ws.onclose = () => {
+      if (downSince === null) {
+        downSince = Date.now() / 1000;
+        document.body.classList.add("offline");
+        if (onOffline) ticker = setInterval(onOffline, 1000);
+      }
       conn.className = "down";
-      setText(conn, "disconnected: retrying");
+      setText(conn, "disconnected from the dashboard server since " + clock(downSince) +
+        ": what is shown is as it was then, not live; retrying");
       setTimeout(open, delay);
       delay = Math.min(delay * 2, 8000);
     };

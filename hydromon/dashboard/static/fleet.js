@@ -4,7 +4,7 @@
 const MAX_ROWS = 500;  // rows drawn; the filter finds the others
 const rows = new Map();   // rig -> row from the server
 const trs = new Map();    // rig -> <tr>
-let now = 0, counts = null;
+let counts = null;
 let match = rigMatcher("");
 
 function orderKey(r) {
@@ -27,7 +27,7 @@ function makeTr(rig) {
   return tr;
 }
 
-function fillTr(tr, r) {
+function fillTr(tr, r, now) {
   const c = tr._cells;
   const chip = c[1].firstChild;
   if (!chip || chip.textContent !== r.grade) c[1].replaceChildren(gradeChip(r.grade));
@@ -65,11 +65,11 @@ function draw() {
   const tbody = document.querySelector("#fleet tbody");
   const all = [...rows.values()].filter((r) => match(r.rig)).sort(compare);
   const shown = all.slice(0, MAX_ROWS);
-  const want = [];
+  const want = [], now = pageNow();
   for (const r of shown) {
     let tr = trs.get(r.rig);
     if (!tr) { tr = makeTr(r.rig); trs.set(r.rig, tr); }
-    fillTr(tr, r);
+    fillTr(tr, r, now);
     want.push(tr);
   }
   // put the rows in order, moving only those out of place
@@ -94,9 +94,8 @@ function schedule() {
 document.getElementById("filter").addEventListener("input", (e) => { match = rigMatcher(e.target.value); schedule(); });
 
 connect({view: "fleet"}, (msg) => {
-  now = msg.now;
   if (msg.type === "fleet") { rows.clear(); }
   for (const r of msg.rows || []) rows.set(r.rig, r);
   if (msg.counts) counts = msg.counts;
   schedule();
-});
+}, schedule);

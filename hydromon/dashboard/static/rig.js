@@ -7,7 +7,7 @@ const STATUS_BAD = {"bad-input": 1, stale: 1};
 let data = null;       // columns: wall, t, level, status, conf, value{p}, se{p}
 let ranges = null, units = {}, words = {}, params = [], gradedNames = [];
 const plots = new Map();  // param -> uPlot
-let now = 0, row = null;
+let row = null;
 const evs = [];
 
 function zonesOf(r) {
@@ -138,7 +138,7 @@ function drawTimeline() {
   const ctx = c.getContext("2d");
   ctx.clearRect(0, 0, c.width, c.height);
   if (!data || !data.wall.length) return;
-  const t0 = data.wall[0], t1 = Math.max(now, data.wall[data.wall.length - 1]);
+  const t0 = data.wall[0], t1 = Math.max(pageNow(), data.wall[data.wall.length - 1]);
   const x = (t) => (t - t0) / Math.max(t1 - t0, 1e-9) * c.width;
   for (let i = 0; i < data.wall.length; i++) {
     const g = data.level[i] >= 0 ? GRADES[data.level[i]] : "unknown";
@@ -165,6 +165,7 @@ function drawHeader() {
   st.replaceChildren(el("span", row.status === "bad-input" ? "bad" : null, row.status));
   if (row.flag) st.append(el("span", "flag", row.flag));
   setText(document.getElementById("conf"), "confidence " + row.confidence.toFixed(2));
+  const now = pageNow();
   setText(document.getElementById("since"), "since " + duration(now - row.since) + "; verdict " + duration(now - row.arrived) + " old");
   setText(document.getElementById("node"), row.node ? "monitor " + row.node : "");
   setText(document.getElementById("why"), row.why.length ? "why: " + row.why.join("; ") : "");
@@ -217,7 +218,6 @@ function append(points) {
 
 drawLegend();
 connect({view: "rig", rig: RIG}, (msg) => {
-  now = msg.now;
   if (msg.type === "rig") {
     params = msg.params; units = msg.units; words = msg.words; ranges = msg.ranges; row = msg.row;
     gradedNames = msg.health ? Object.keys(msg.health.param_grades) : [];
@@ -242,4 +242,4 @@ connect({view: "rig", rig: RIG}, (msg) => {
   drawHeader();
   drawPlots();
   drawTimeline();
-});
+}, () => { drawHeader(); drawTimeline(); });
