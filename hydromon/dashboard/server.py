@@ -46,6 +46,7 @@ class WebServer:
 
     def __init__(self, fleet: Fleet, host: str = "127.0.0.1", port: int = 8050, on_tick=None,
                  info: dict | None = None, clock=None):
+        self.info = dict(info or {})  # what the pages are told of the source (``/api/info``)
         self.sock = bind(host, port)
         self.port = self.sock.getsockname()[1]
         shown = f"[{host.strip('[]')}]" if ":" in host else host

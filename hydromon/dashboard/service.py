@@ -97,16 +97,21 @@ def open_recording(path, *, host: str = "127.0.0.1", port: int = 8050, fallback_
     fleet = Fleet(EventLog(None), fallback_ranges=fallback_ranges, live=False)
     spacing = max(1e-3, duration / 900)  # about 900 points per rig, however fast it was recorded
     fleet.history_shape = ((spacing, 1000), (max(spacing * 6, 6.0), 600))
-    last = start
+    last, verdicts = start, 0
     for key, payload, log_ns, _pub in read_recording(path):
         parts = rig_key_parts(key, None)
         if isinstance(parts, str) or parts[2] not in ("health", "event"):
             continue
         last = log_ns / 1e9
+        verdicts += parts[2] == "health"
         fleet.take_recorded(parts[1], parts[2], payload, last)
-    fleet.tick(last)
-    web = WebServer(fleet, host, port, clock=lambda: last,
-                    info={"source": "recording", "recording": str(path), "start": start, "end": last})
+    # ages at the recording's end, not at its last verdict: a monitor that died before the
+    # recorder did shows its rigs' verdicts as old as they were when the recording ended
+    end = max(end, last)
+    fleet.tick(end)
+    web = WebServer(fleet, host, port, clock=lambda: end,
+                    info={"source": "recording", "recording": str(path), "start": start, "end": end,
+                          "verdicts": verdicts})
     web.start()
     return Dashboard(fleet, web)
 

@@ -45,3 +45,51 @@ def test_a_recording_in_the_pages(tmp_path):
             assert page.errors == []
     finally:
         procs.close()
+
+
+def _rewritten(path, keep, tail_s: float = 0.0):
+    """The golden recording's messages that ``keep(key)`` takes, into ``path``, and then each
+    rig's last sample again every second for ``tail_s`` seconds [s] (the rigs ran on)."""
+    from hydromon.store.mcap_write import RecordingWriter
+
+    last_ns, last_sample = 0, {}
+    with open(path, "wb") as f:
+        w = RecordingWriter(f)
+        for key, payload, log_ns, pub_ns in read_recording(GOLDEN):
+            last_ns = max(last_ns, log_ns)
+            if key.endswith("/sample"):
+                last_sample[key] = payload
+            if keep(key):
+                w.write(key, payload, log_ns, pub_ns)
+        for k in range(1, int(tail_s) + 1):
+            for key, payload in last_sample.items():
+                w.write(key, payload, last_ns + k * 1_000_000_000, last_ns + k * 1_000_000_000)
+        w.close()
+    return last_ns / 1e9
+
+
+@pytest.mark.timeout(120)
+def test_a_recording_s_ages_are_taken_at_its_end_and_one_without_verdicts_says_so(tmp_path):
+    procs = Procs(tmp_path)
+    try:
+        # the monitor stopped 60 s before the recorder: every verdict is a minute old at the end
+        last = _rewritten(tmp_path / "monitor-died.mcap", lambda key: True, tail_s=60)
+        url = procs.dashboard("died", "--recording", str(tmp_path / "monitor-died.mcap"))
+        with urllib.request.urlopen(url + "api/fleet", timeout=10) as r:
+            fleet = json.loads(r.read())
+        with urllib.request.urlopen(url + "api/info", timeout=10) as r:
+            info = json.loads(r.read())
+        assert info["end"] == pytest.approx(last + 60.0) and info["verdicts"] > 0, info
+        ages = [fleet["now"] - row["arrived"] for row in fleet["rows"]]
+        assert len(ages) == 5 and all(59.0 < a < 62.0 for a in ages), ages
+
+        _rewritten(tmp_path / "samples-only.mcap", lambda key: key.endswith("/sample") or key.endswith("/config"))
+        url = procs.dashboard("bare", "--recording", str(tmp_path / "samples-only.mcap"))
+        assert "holds no health verdicts" in procs.log("bare") and "hydromon evaluate" in procs.log("bare")
+        with chromium() as ctx:
+            page = Watched(ctx)
+            page.page.goto(url)
+            page.page.wait_for_function("() => document.querySelector('#source').textContent.includes('no health')")
+            assert page.errors == []
+    finally:
+        procs.close()

@@ -86,6 +86,9 @@ def run(args) -> int:
     try:
         what = f"recording {args.recording}" if args.recording else f"{args.namespace}/rig/{chunk}/health"
         print(f"hydromon dashboard: {dash.url} ({what}; Ctrl-C to stop)", file=sys.stderr, flush=True)
+        if args.recording and dash.web.info.get("verdicts") == 0:
+            print(f"hydromon dashboard: {args.recording} holds no health verdicts (recorded without a monitor on "
+                  f"the bus): grade it with hydromon evaluate {args.recording}", file=sys.stderr, flush=True)
         if dash.foxglove is not None:
             print(f"hydromon dashboard: Foxglove: {dash.foxglove.address}", file=sys.stderr, flush=True)
         stop.wait(args.duration)

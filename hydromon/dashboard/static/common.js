@@ -57,7 +57,8 @@ function rigLink(rig) {
 function showSource(info) {
   const e = document.getElementById("source");
   if (!e || !info) return;
-  if (info.source === "recording") setText(e, "recording " + info.recording);
+  if (info.source === "recording") setText(e, "recording " + info.recording + (info.verdicts === 0 ?
+    ": it holds no health verdicts (recorded without a monitor on the bus); grade it with hydromon evaluate" : ""));
   else if (info.source === "bus") setText(e, "live: " + info.namespace + "/rig/" + info.rigs);
 }
 
