@@ -21,6 +21,7 @@ its estimates current) and publishes nothing until it claims; see ``hydromon.bus
 from __future__ import annotations
 
 import hashlib
+import re
 import time
 
 import zenoh
@@ -36,8 +37,17 @@ def group_name(rigs: str) -> str:
     return "all" if rigs == "*" else "rigs-" + hashlib.sha256(rigs.encode()).hexdigest()[:12]
 
 
+_CLAIM = re.compile(r"[0-9]{20}-([A-Za-z0-9_-]{1,64})")  # <claim time [ns], 20 digits>-<node>
+
+
 def _node_of(token: str) -> str:
-    return token.rsplit("/", 1)[1].split("-", 1)[1]
+    return _CLAIM.fullmatch(token.rsplit("/", 1)[1]).group(1)
+
+
+def _is_claim(token: str) -> bool:
+    """Whether ``token`` is a claim as monitors make them: a token of another shape (a peer's
+    mistake, or a forgery) claims nothing, and must not stop a monitor that reads it."""
+    return _CLAIM.fullmatch(token.rsplit("/", 1)[1]) is not None
 
 
 class Failover:
@@ -68,7 +78,7 @@ class Failover:
         self._sub = session.liveliness().declare_subscriber(f"{self.prefix}/*", zenoh.handlers.FifoChannel(1000),
                                                             history=True)
         for reply in session.liveliness().get(f"{self.prefix}/*", timeout=probe_s):
-            if reply.ok is not None:
+            if reply.ok is not None and _is_claim(str(reply.ok.key_expr)):
                 self.others.add(str(reply.ok.key_expr))
         self._not_before = clock() + (grace_s if self.standby else 0.0)
 
@@ -88,7 +98,7 @@ class Failover:
         try:
             while (s := self._sub.try_recv()) is not None:
                 key = str(s.key_expr)
-                if key == self.mine:
+                if key == self.mine or not _is_claim(key):
                     continue
                 if s.kind == zenoh.SampleKind.PUT:
                     self.others.add(key)
