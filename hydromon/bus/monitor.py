@@ -30,6 +30,7 @@ from hydromon.bus.rig_keys import RigKeys
 from hydromon.bus.session import JSON
 from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, health_key, liveliness_key, ranges_key
 from hydromon.engine.core import MonitorCore
+from hydromon.engine.validate import PAYLOAD_MAX
 from hydromon.engine.watches import BacklogWatch, RateLimitedLog, SilenceWatch
 from hydromon.store.ranges_dir import RangesDir
 from hydromon.store.state_dir import StateDir
@@ -250,13 +251,18 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 replies = None
             if clock() > replies_until:
                 replies = None
-        # configs first: a config queued with samples applies to them
-        while len(batch) < max_batch and (m := sub_c.try_recv()) is not None:
-            batch.append((str(m.key_expr), m.payload.to_bytes()))
-        while len(batch) < max_batch and (m := sub_s.try_recv()) is not None:
-            batch.append((str(m.key_expr), m.payload.to_bytes()))
-        while len(batch) < max_batch and (m := sub_f.try_recv()) is not None:  # frames: many samples each
-            batch.append((str(m.key_expr), m.payload.to_bytes()))
+        # configs first: a config queued with samples applies to them; a payload too large to be
+        # one of ours is counted unread (copying megabytes of garbage would hold up every rig)
+        big = []
+        for sub in (sub_c, sub_s, sub_f):  # frames last: many samples each
+            while len(batch) < max_batch and (m := sub.try_recv()) is not None:
+                p = m.payload
+                if len(p) > PAYLOAD_MAX:
+                    big.append((str(m.key_expr), len(p)))
+                else:
+                    batch.append((str(m.key_expr), p.to_bytes()))
+        for key, size in big:
+            core.refuse_unread(key, size)
         if batch:
             out = core.process(batch)
             keys.sync(core)

@@ -42,7 +42,7 @@ from hydromon.engine.ranges_book import RangesBook
 from hydromon.engine.rig_table import ROW_STATE, Rig, RigTable
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, RESTART, SeqState, sequence_push
 from hydromon.engine.units_watch import UnitsWatch
-from hydromon.engine.validate import Rejected, decode_json, parse_sample
+from hydromon.engine.validate import Rejected, decode_json, parse_sample, too_large_words
 from hydromon.engine.verdicts import Verdicts
 from monitor.drive import command_for_drive
 from monitor.pipeline import Fleet
@@ -239,6 +239,15 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch):
             self._bad[rig.row] = True
         if self.on_reject is not None:
             self.on_reject(reason, key, detail)
+
+    def refuse_unread(self, key: str, size: int) -> None:
+        """Count a message of ``size`` bytes on ``key`` that was not read (more than
+        ``PAYLOAD_MAX``): rejected as ``too-large``, its rig's next health says bad-input."""
+        rig = self._known.get(key) or self._frame_rigs.get(key)
+        if rig is None:
+            parts = split_rig_key(key, self.namespace)
+            rig = self.rigs.get(parts[0]) if not isinstance(parts, str) else None
+        self._reject("too-large", key, too_large_words(size), rig)
 
     def _on_sample(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
         try:

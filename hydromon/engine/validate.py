@@ -3,21 +3,25 @@
 The monitor never crashes on input and never feeds an estimator a bad value: a message is
 rejected, and counted under a reason, when
 
-=================  ===================================================================
-``bad-key``        the key is not ``<ns>/rig/<chunk>/sample`` or ``.../config``
-``bad-rig-id``     the rig chunk is not 1-64 chars of ``[A-Za-z0-9_-]``
-``not-json``       the payload does not parse as JSON
-``non-finite``     NaN or +-inf, as a JSON token (``NaN``, ``Infinity``, ``1e400``) or as
-                   a string spelling one (``"nan"``, ``"inf"``)
-``missing-field``  a field of the contract model is absent
-``wrong-type``     not a JSON object, or a field of the wrong type (a string, a bool, a
-                   float seq)
-``unknown-field``  a field the contract does not have (models forbid extras)
-``bad-value``      a value out of its range (seq < 0, a non-positive area), a config
-                   whose sample rate the monitor does not run at, or a frame whose arrays
-                   differ in length, are empty or longer than FRAME_MAX, or whose times do
-                   not strictly increase
-=================  ===================================================================
+==================  ======================================================================
+``bad-key``         the key is not ``<ns>/rig/<chunk>/sample`` or ``.../config``
+``bad-rig-id``      the rig chunk is not 1-64 chars of ``[A-Za-z0-9_-]``
+``not-json``        the payload does not parse as JSON
+``non-finite``      NaN or +-inf, as a JSON token (``NaN``, ``Infinity``, ``1e400``) or as
+                    a string spelling one (``"nan"``, ``"inf"``)
+``missing-field``   a field of the contract model is absent
+``wrong-type``      not a JSON object, or a field of the wrong type (a string, a bool, a
+                    float seq)
+``unknown-field``   a field the contract does not have (models forbid extras)
+``bad-value``       a value out of its range (seq < 0, a non-positive area), a config
+                    whose sample rate the monitor does not run at, or a frame whose arrays
+                    differ in length, are empty or longer than FRAME_MAX, or whose times do
+                    not strictly increase
+``too-many-rigs``   a new rig id beyond the monitor's limit of rigs (``--max-rigs``)
+``too-large``       a bus payload of more than ``PAYLOAD_MAX`` bytes (a frame of FRAME_MAX
+                    samples written out in full takes about 200 kB): the monitor node counts
+                    it unread (``MonitorCore.refuse_unread``)
+==================  ======================================================================
 """
 
 from __future__ import annotations
@@ -32,10 +36,14 @@ from pydantic import ValidationError
 
 from hydromon.contract import SAMPLE_COLUMNS, SAMPLE_LIMITS, SEQ_MAX, Frame, RigConfig, Sample
 
-__all__ = ["REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "parse_config", "parse_sample", "parse_frame"]
+__all__ = ["PAYLOAD_MAX", "REJECT_REASONS", "VALUE_LIMITS", "Rejected", "decode_json", "too_large_words",
+           "parse_config", "parse_sample", "parse_frame"]
 
 REJECT_REASONS = ("bad-key", "bad-rig-id", "not-json", "non-finite", "missing-field", "wrong-type",
-                  "unknown-field", "bad-value", "too-many-rigs")
+                  "unknown-field", "bad-value", "too-many-rigs", "too-large")
+PAYLOAD_MAX = 1 << 20
+"""The largest bus payload [B] the monitor node reads; a larger one is refused unread
+(``too-large``): copying and parsing megabytes of garbage would hold up every rig's health."""
 _SAMPLE_FIELD_SET = frozenset(("seq", *SAMPLE_COLUMNS))  # a sample without the optional drive u
 _NUM = (float, int)
 _SEQ = itemgetter(0)
@@ -100,7 +108,12 @@ def decode_json(payload: bytes):
             json.loads(payload)
         except (ValueError, UnicodeDecodeError, RecursionError):
             raise Rejected("not-json", str(exc)) from None
-        raise Rejected("non-finite", "NaN or infinity in the JSON") from None
+        raise Rejected("non-finite", "NaN, infinity or a number beyond a float's range in the JSON") from None
+
+
+def too_large_words(size: int) -> str:
+    """Why a payload of ``size`` bytes is refused unread."""
+    return f"{size} bytes; the monitor reads payloads of at most {PAYLOAD_MAX} bytes"
 
 
 def parse_sample(obj) -> tuple:
