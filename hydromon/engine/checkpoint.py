@@ -201,5 +201,8 @@ def restore(core, ckpt: Checkpoint) -> list[tuple[str, str]]:
         ann._count[r] = int(count)
         if meta["latest"][i] is not None:
             core.latest[rig_id] = meta["latest"][i].encode()
+    for rig_id in configs:  # configs of rigs that send no sample yet, oldest first as saved
+        if rig_id not in core.rigs:
+            core._unused[rig_id] = None
     core._refresh_units_live()
     return refused

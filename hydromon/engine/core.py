@@ -126,7 +126,9 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch):
         self._early_bad: set[str] = set()  # rigs with a rejected sample before their first good one
         self._known: dict[str, Rig] = {}  # sample key -> its rig, for keys already validated
         self._frame_rigs: dict[str, Rig] = {}  # frame key -> its rig (hydromon.engine.frames)
-        self._forgotten: dict[str, None] = {}  # forgotten rigs whose config is kept, oldest first
+        # configs of rig ids that hold no row (sent before the rig's first sample, or of a forgotten
+        # rig), oldest first: the first to go when configs would pass max_rigs
+        self._unused: dict[str, None] = {}
         self._cur = 0  # index in the current process() call of the message being taken one by one
         self._held: dict[int, SeqState] = {}  # by row: a rig's sequence state while it holds samples back
         self._taps: dict[int, list[np.ndarray]] = {}  # by row: the samples taken, kept for commissioning

@@ -27,6 +27,7 @@ class MonitorCounters:
     health: int = 0            # health messages produced
     stale_resent: int = 0      # latest health re-sent stale for a silent rig (MonitorCore.stale; not in as_dict)
     forgotten: int = 0         # rigs forgotten after a long silence (MonitorCore.forget; not in as_dict)
+    configs_dropped: int = 0   # configs of rig ids without a row dropped for newer ones (max_rigs; not in as_dict)
 
     @property
     def dropped_seq(self) -> int:

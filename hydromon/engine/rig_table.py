@@ -107,7 +107,7 @@ class RigTable:
                 self._health_keys[row] = health_key(rig_id, self.namespace)
             else:
                 self._health_keys.append(health_key(rig_id, self.namespace))
-            self._forgotten.pop(rig_id, None)  # back: its kept config is in use again
+            self._unused.pop(rig_id, None)  # its kept config is in use
             self.verdicts.apply(row, config)
         return rig
 
@@ -116,8 +116,9 @@ class RigTable:
         and seq state go, and their rows are reused by the next new rigs, so a plant whose rig ids
         come and go never reaches ``max_rigs`` with rigs long gone. A forgotten rig that comes back
         starts afresh, as a new rig, with the config it last sent (configs are published once and
-        on change); the configs of forgotten rigs are kept up to ``max_rigs`` in all, the oldest
-        dropped first. Call between :meth:`process` calls. Returns the ids forgotten."""
+        on change); the configs of rig ids without a row (forgotten, or never started) are kept up to
+        ``max_rigs`` configs in all, the oldest dropped first. Call between :meth:`process` calls.
+        Returns the ids forgotten."""
         done = []
         for rig_id in rig_ids:
             rig = self.rigs.pop(rig_id, None)
@@ -134,18 +135,22 @@ class RigTable:
             for name, value, _ in ROW_STATE:
                 getattr(self, name)[r] = value
             if rig_id in self.configs:
-                self._forgotten[rig_id] = None
+                self._unused[rig_id] = None
             done.append(rig_id)
         self.counters.forgotten += len(done)
         return done
 
     def _config_room(self) -> bool:
-        """Room for one more rig's config: the oldest config of a forgotten rig makes room."""
+        """Room for one more rig's config: the oldest config of a rig id that holds no row (one
+        that never sent a sample, or was forgotten) makes room. Configs of made-up rig ids that
+        never send a sample must not keep a real rig's config out: it would be graded on the
+        reference rig's constants."""
         if len(self.configs) < self.max_rigs:
             return True
-        if self._forgotten:
-            oldest = next(iter(self._forgotten))
-            del self._forgotten[oldest], self.configs[oldest]
+        if self._unused:
+            oldest = next(iter(self._unused))
+            del self._unused[oldest], self.configs[oldest]
+            self.counters.configs_dropped += 1
             return True
         return False
 
@@ -167,6 +172,9 @@ class RigTable:
         self.counters.configs += 1
         self.configs[rig_id] = config
         rig = self.rigs.get(rig_id)
+        if rig is None:  # kept for the rig's first sample; newest last
+            self._unused.pop(rig_id, None)
+            self._unused[rig_id] = None
         if rig is None or rig.config == config or (rig.config is None and config == RigConfig()):
             if rig is not None:
                 rig.config = config

@@ -128,3 +128,18 @@ def test_monitor_node_forgets_a_silent_rig_and_says_so(caplog):
             stop.set()
             mon.join(30)
     assert any("rig quiet: forgotten after 0.5 s without a sample" in r.getMessage() for r in caplog.records)
+
+
+def test_configs_of_rig_ids_that_never_send_a_sample_do_not_keep_a_real_rig_s_config_out():
+    core = MonitorCore(eval_every=3, max_rigs=4)
+    cfg = orjson.dumps(RigConfig().model_dump())
+    core.process([(f"hydro/rig/fake{i}/config", cfg) for i in range(100)])  # a flood of made-up ids
+    real = RigConfig(p_s=10e6)
+    core.process([("hydro/rig/real/config", orjson.dumps(real.model_dump()))] + _samples("real", 9))
+    assert core.rigs["real"].config == real and core.counters.rejected["too-many-rigs"] == 0
+    assert len(core.configs) == 4 and core.counters.configs_dropped == 97
+    # the configs of rigs that do send samples are never dropped for new ones
+    for rig in ("a", "b", "c"):
+        core.process([(f"hydro/rig/{rig}/config", cfg)] + _samples(rig, 3))
+    core.process([("hydro/rig/late/config", cfg)])
+    assert core.counters.rejected["too-many-rigs"] == 1 and set(core.configs) == {"real", "a", "b", "c"}
