@@ -214,23 +214,25 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch):
         return self._last[:len(self.fleet.ids)].copy()
 
     def stale(self, rig_ids: Iterable[str]) -> list[tuple[str, bytes]]:
-        """The latest health of each of these rigs (silent ones: no sample for a while), re-sent
-        with status ``stale`` (its grade and numbers are those of its last samples); a rig with no
-        health yet, or whose latest is stale already, gets none. ``latest`` says stale from then
-        on, until the rig's next health."""
+        """The latest health of each of these rigs (silent ones: no sample taken for a while),
+        re-sent with status ``stale`` (its grade and numbers are those of its last samples), or
+        ``bad-input`` when messages of the rig were rejected since its last health (it is not
+        silent: what it sends is refused); a rig with no health yet, or whose latest says so
+        already, gets none. ``latest`` says it from then on, until the rig's next health."""
         out = []
         for rig_id in rig_ids:
             payload = self.latest.get(rig_id)
             if payload is None:
                 continue
             h = orjson.loads(payload)
-            if h["status"] == "stale":
-                continue
-            h["status"] = "stale"
-            payload = self.latest[rig_id] = orjson.dumps(h)
             row = self.rigs[rig_id].row
+            status = "bad-input" if self._bad[row] else "stale"
+            if h["status"] == status:
+                continue
+            h["status"] = status
+            payload = self.latest[rig_id] = orjson.dumps(h)
             out.append((self._health_keys[row], payload))
-            self.verdicts.stale(row, h["seq"], h["t"], -1 if h["level"] is None else h["level"], payload)
+            self.verdicts.stale(row, h["seq"], h["t"], -1 if h["level"] is None else h["level"], payload, status)
         self.counters.stale_resent += len(out)
         return out
 

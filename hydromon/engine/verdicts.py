@@ -118,9 +118,10 @@ class Verdicts:
                 self._announce(r, change, seqs[j], float(t[j]), payloads[j])
         return payloads
 
-    def stale(self, row: int, seq: int, t: float, level: int, payload: bytes) -> None:
-        """The rig in ``row`` went silent: its latest verdict re-sent ``stale`` is announced at once."""
-        change = self.announcer.observe(row, level, "stale", now=True)
+    def stale(self, row: int, seq: int, t: float, level: int, payload: bytes, status: str = "stale") -> None:
+        """The rig in ``row`` took no sample for a while: its latest verdict re-sent with ``status``
+        (``stale``, or ``bad-input`` when its messages are refused) is announced at once."""
+        change = self.announcer.observe(row, level, status, now=True)
         if change is not None:
             self._announce(row, change, seq, t, payload)
 

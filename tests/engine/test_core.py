@@ -242,6 +242,27 @@ def test_a_rig_that_goes_silent_has_its_latest_health_re_sent_stale_once():
     assert len(watch.check(core, 12.2)) == 5  # and fall silent again
 
 
+def test_a_rig_whose_every_sample_is_refused_says_bad_input_not_stale():
+    """Its messages keep coming, so it is not silent: what it sends is refused (a sensor beyond
+    the contract's limits), and the health and its event say so."""
+    from hydromon.engine.watches import SilenceWatch
+
+    core, watch = MonitorCore(NS), SilenceWatch(2.0)
+    core.process(CLEAN[:5 + 5 * 400])
+    core.take_events()
+    watch.check(core, 0.0)
+    rig = SPEC.ids[0]
+    bad = [(health_key(rig).replace("/health", "/sample"), sample_with(seq=400 + k, x3=2e9)) for k in range(300)]
+    core.process(bad)
+    assert core.counters.rejected["bad-value"] == 300
+    resent = dict(watch.check(core, 2.1))
+    assert orjson.loads(resent[health_key(rig)])["status"] == "bad-input"
+    assert {orjson.loads(p)["status"] for k, p in resent.items() if k != health_key(rig)} == {"stale"}
+    events = [orjson.loads(p) for k, p in core.take_events() if f"/{rig}/" in k]
+    assert [(e["kind"], e["to"]) for e in events] == [("status", "bad-input")], events
+    assert watch.check(core, 10.0) == []
+
+
 def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
     rig = "table4-g1"
     changed = RigConfig(p_s=13e6)
