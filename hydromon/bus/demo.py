@@ -128,8 +128,8 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     """
     from hydromon.engine.warm import warm_up
     from hydromon.engine.core import MonitorCore
-    from hydromon.engine.watches import RateLimitedLog
-    from hydromon.bus.monitor import log_rig_warning, run_monitor
+    from hydromon.engine.watches import RateLimitedLog, RigWarningLog
+    from hydromon.bus.monitor import run_monitor
     from hydromon.bus.recorder import record
     from hydromon.bus.sim import run_sim
 
@@ -148,7 +148,7 @@ def run_demo(*, duration: float | None = 30.0, out_dir=".", rate: float = 1.0,
     stop = stop_event if stop_event is not None else threading.Event()
     health: dict[str, dict] = {}
     stop_sim, stop_mon, stop_rec = threading.Event(), threading.Event(), threading.Event()
-    core = MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=log_rig_warning)
+    core = MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=RigWarningLog())
     path = _recording_path(out_dir)
     close_attached, lines = None, []
 

@@ -31,20 +31,14 @@ from hydromon.bus.session import JSON
 from hydromon.contract import DEFAULT_NAMESPACE, check_namespace, health_key, liveliness_key, ranges_key
 from hydromon.engine.core import MonitorCore
 from hydromon.engine.validate import PAYLOAD_MAX
-from hydromon.engine.watches import BacklogWatch, RateLimitedLog, SilenceWatch
+from hydromon.engine.watches import BacklogWatch, RateLimitedLog, RigWarningLog, SilenceWatch
 from hydromon.store.ranges_dir import RangesDir
 from hydromon.store.state_dir import StateDir
 from hydromon.engine.warm import warm_up
 
-__all__ = ["log_rig_warning", "rig_pattern", "run_monitor"]
+__all__ = ["rig_pattern", "run_monitor"]
 
 log = logging.getLogger(__name__)
-
-
-def log_rig_warning(rig_id: str, message: str) -> None:
-    """``MonitorCore(on_warning=...)`` for the nodes: one log line per warning (they come once
-    per rig and restart, so they need no rate limit)."""
-    log.warning("rig %s: %s", rig_id, message)
 
 
 _RIG_PATTERN_RE = re.compile(r"\*|\$\*|[A-Za-z0-9_$*-]{1,64}")
@@ -139,7 +133,7 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     Returns the core (its ``counters``, ``latest`` health per rig).
     """
     check_namespace(namespace)
-    core = core or MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=log_rig_warning)
+    core = core or MonitorCore(namespace, on_reject=RateLimitedLog(), on_warning=RigWarningLog())
     if core.namespace != namespace:
         raise ValueError(f"core namespace {core.namespace!r} != {namespace!r}")
     if state_dir is not None:
@@ -155,7 +149,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
     watch = None if stale_after_s is None and forget_after_s is None else SilenceWatch(stale_after_s, forget_after_s)
     watch_every = 0.25 if stale_after_s is None else min(0.25, stale_after_s / 4)
     backlog = BacklogWatch(max_batch, behind_after_s)  # checks its arguments before anything is declared
-    flush_log = getattr(core.on_reject, "flush", None)  # a RateLimitedLog's due counts
+    flushes = [f for f in (getattr(core.on_reject, "flush", None), getattr(core.on_warning, "flush", None))
+               if f is not None]  # a RateLimitedLog's and a RigWarningLog's due counts
 
     failover: Failover | None = None
     if commission_new_s is not None and ranges_dir is None:
@@ -306,8 +301,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 keys.check(core)
                 if live is not None:
                     live.check(core)
-                if flush_log is not None:
-                    flush_log()
+                for flush in flushes:
+                    flush()
                 next_watch = now + watch_every
             if failover is not None and (line := failover.poll()) is not None:
                 log.warning("monitor %s: %s", node_name, line)
@@ -340,8 +335,8 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
         quiet.__exit__()
         tell(backlog.close(clock()))
         keys.close()
-        if flush_log is not None:
-            flush_log(final=True)
+        for flush in flushes:
+            flush(final=True)
         for obj in (sub_s, sub_f, sub_c, queryable, ranges_queryable, token):
             try:
                 obj.undeclare()

@@ -1,6 +1,7 @@
 """What the monitor node watches besides its input, by a clock the caller passes in.
 
-:class:`RateLimitedLog` keeps the rejection log readable under a flood of bad messages;
+:class:`RateLimitedLog` keeps the rejection log readable under a flood of bad messages, and
+:class:`RigWarningLog` the rigs' warnings under a rig that changes its config every message;
 :class:`SilenceWatch` finds rigs that went silent (their latest health re-sent ``stale``, and
 forgotten after a longer silence); :class:`BacklogWatch` says when the node falls behind its
 input. No I/O but logging, no clock of their own: the node (``hydromon.bus.monitor``) calls them.
@@ -15,7 +16,7 @@ import numpy as np
 
 from hydromon.engine.core import MonitorCore
 
-__all__ = ["RateLimitedLog", "SilenceWatch", "BacklogWatch"]
+__all__ = ["RateLimitedLog", "RigWarningLog", "SilenceWatch", "BacklogWatch"]
 
 log = logging.getLogger("hydromon.bus.monitor")  # the node's log: these lines are its
 
@@ -53,6 +54,40 @@ class RateLimitedLog:
                 n = self._suppressed.pop(reason)
                 self._last[reason] = now
                 self.logger.warning("rejected %s: %d more since the last report", reason, n)
+
+
+class RigWarningLog:
+    """``__call__(rig_id, message)`` (``MonitorCore(on_warning=...)``) logs a rig's warning of
+    each kind (the message up to its first ':' or '(') at once, then at most one line per rig
+    and kind every ``interval`` [s] with how many were suppressed; ``flush`` as
+    :class:`RateLimitedLog`'s. Most warnings come once per rig and restart of its estimates,
+    but a rig whose config flips with every message would write two lines a message."""
+
+    def __init__(self, logger: logging.Logger = log, interval: float = 5.0, clock=time.monotonic):
+        self.logger, self.interval, self.clock = logger, float(interval), clock
+        self._last: dict[tuple[str, str], float] = {}
+        self._suppressed: dict[tuple[str, str], int] = {}
+
+    def __call__(self, rig_id: str, message: str) -> None:
+        key = (rig_id, message.split(":", 1)[0].split("(", 1)[0].strip()[:60])
+        now = self.clock()
+        last = self._last.get(key)
+        if last is not None and now - last < self.interval:
+            self._suppressed[key] = self._suppressed.get(key, 0) + 1
+            return
+        n = self._suppressed.pop(key, 0)
+        self._last[key] = now
+        more = f" (+{n} more like it since the last report)" if n else ""
+        self.logger.warning("rig %s: %s%s", rig_id, message, more)
+
+    def flush(self, final: bool = False) -> None:
+        """Log each suppressed count whose interval has passed (every one if ``final``)."""
+        now = self.clock()
+        for key in list(self._suppressed):
+            if final or now - self._last[key] >= self.interval:
+                n = self._suppressed.pop(key)
+                self._last[key] = now
+                self.logger.warning("rig %s: %d more warnings '%s...' since the last report", key[0], n, key[1])
 
 
 class SilenceWatch:

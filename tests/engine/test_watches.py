@@ -39,3 +39,26 @@ def test_rejection_log_reports_a_last_burst_without_a_further_rejection(caplog):
         rl("bad-key", "x/y", "nope")
         rl.flush(final=True)  # the node stopping: reported whether due or not
     assert caplog.records[-1].getMessage() == "rejected bad-key: 1 more since the last report"
+
+
+def test_rig_warnings_are_rate_limited_per_rig_and_kind(caplog):
+    from hydromon.engine.watches import RigWarningLog
+
+    now = [0.0]
+    wl = RigWarningLog(interval=5.0, clock=lambda: now[0])
+    with caplog.at_level("WARNING", logger="hydromon.bus.monitor"):
+        for i in range(120):  # a rig whose config flips every message for 12 s
+            now[0] = i * 0.1
+            wl("flip", f"config changed (F_L): its estimates restart ({i})")
+            wl("flip", "not graded: no ranges were made for it")
+        wl("calm", "config changed (p_s): its estimates restart")  # another rig is told at once
+        wl.flush(final=True)
+    lines = [r.getMessage() for r in caplog.records]
+    assert lines[:2] == ["rig flip: config changed (F_L): its estimates restart (0)",
+                         "rig flip: not graded: no ranges were made for it"]
+    assert lines[2] == ("rig flip: config changed (F_L): its estimates restart (50) (+49 more like it since the "
+                        "last report)")
+    assert "rig calm: config changed (p_s): its estimates restart" in lines
+    assert lines[-2:] == ["rig flip: 19 more warnings 'config changed...' since the last report",
+                          "rig flip: 19 more warnings 'not graded...' since the last report"]
+    assert len(lines) == 9  # 240 warnings of one rig in 12 s: three lines a kind

@@ -75,8 +75,8 @@ def run(args) -> int:
     from hydromon.cli import checks
     from hydromon.contract import liveliness_key
     from hydromon.engine.core import MonitorCore
-    from hydromon.engine.watches import RateLimitedLog
-    from hydromon.bus.monitor import log_rig_warning, run_monitor
+    from hydromon.engine.watches import RateLimitedLog, RigWarningLog
+    from hydromon.bus.monitor import run_monitor
     from hydromon.bus.failover import group_name
     from hydromon.contract import valid_rig_id
     from hydromon.store.ranges_dir import RangesDir
@@ -111,7 +111,7 @@ def run(args) -> int:
     options = options_from_args(args, MonitorCore.SAMPLE_RATE)
     # the epoch: this start of the node, later than any earlier start of it (ms of the wall clock)
     core = MonitorCore(args.namespace, eval_every=args.eval_every, on_reject=RateLimitedLog(),
-                       on_warning=log_rig_warning, threads=args.threads, ranges=ranges, max_rigs=args.max_rigs,
+                       on_warning=RigWarningLog(), threads=args.threads, ranges=ranges, max_rigs=args.max_rigs,
                        options=options, node=args.node, epoch=time.time_ns() // 1_000_000)
     stop = threading.Event()
     restore_signals = stop_on_signals(stop)  # not stop.set() in the handler: hydromon.cli.stop
