@@ -38,6 +38,7 @@ from hydromon.engine.batch import RegularBatch
 from hydromon.engine.counters import MonitorCounters
 from hydromon.engine.frame_batch import FrameBatch
 from hydromon.engine.frames import FrameInput
+from hydromon.engine.frozen_watch import FrozenWatch
 from hydromon.engine.ranges_book import RangesBook
 from hydromon.engine.rig_table import ROW_STATE, Rig, RigTable
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, RESTART, SeqState, sequence_push
@@ -59,7 +60,7 @@ _SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
 
 
-class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch):
+class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch, FrozenWatch):
     """The monitor without the bus: ``process(messages) -> [(health_key, payload)]``.
 
     Parameters
@@ -137,6 +138,7 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch):
             setattr(self, name, np.full(16, value, dtype=dtype))
         # each row's bounds, set with its rig, and the tightest of them (hydromon.engine.units_watch)
         self._limits, self._units_live = np.zeros((0, 4)), False
+        self._prev = np.zeros((0, 5))  # each row's last sample (hydromon.engine.frozen_watch)
         self._tight = np.array([np.inf, np.inf, np.inf, -np.inf])
         self._clear()
 
@@ -171,6 +173,7 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch):
                     kept.append(vals[mine])
         ev = self.fleet.update(rows, vals[:, 1:])
         self._units_flagged(rows, vals, ev)
+        self._frozen_flagged(rows, vals, ev)
         if len(ev):
             self._health(ev, vals[:, 0], out)
         self._clear()

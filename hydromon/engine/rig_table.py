@@ -38,6 +38,8 @@ ROW_STATE = (
     ("_units", 0, np.int64),           # samples beyond its config's bounds since its latest evaluation
     ("_units_windows", 0, np.int64),   # evaluations that found a few beyond, since the estimates (re)started
     ("_units_warned", False, np.bool_),  # warned of them (hydromon.engine.units_watch)
+    ("_same", 0, np.int64),            # samples in a row repeating the one before (hydromon.engine.frozen_watch)
+    ("_frozen_warned", False, np.bool_),  # warned of this freeze
 )
 
 
@@ -134,6 +136,8 @@ class RigTable:
             self._frame_rigs.pop(frame_key(rig_id, self.namespace), None)
             for name, value, _ in ROW_STATE:
                 getattr(self, name)[r] = value
+            if r < len(self._prev):
+                self._prev[r] = np.nan  # the next rig in this row repeats nothing of this one
             if rig_id in self.configs:
                 self._unused[rig_id] = None
             done.append(rig_id)

@@ -33,7 +33,8 @@ _GRADE = GRADES + (UNKNOWN,)  # level -1 -> unknown
 def _status_reason(status: str, why_uncalibrated: str | None) -> str:
     return {
         "bad-input": "its input is bad: a message rejected, physically impossible estimates, x1 beyond a "
-                     "chamber's end, or readings its config cannot hold (a channel in other units)",
+                     "chamber's end, readings its config cannot hold (a channel in other units), or "
+                     "readings that stopped changing",
         "stale": "no recent samples (the rig went silent, or the filters restart after a gap)",
         "commissioning": "the monitor is commissioning it from its first samples",
         "uncalibrated": why_uncalibrated or "no ranges were made for it",

@@ -1,0 +1,73 @@
+"""Readings that stopped changing, watched sample by sample: a rig whose five channels repeat one
+reading for ``FROZEN_S`` seconds says ``bad-input`` and is warned of, once per freeze.
+
+An acquisition that stalls and keeps re-sending its last reading (its seq still counting) is not
+silent, so the silence watch never sees it, and its estimates, which learn nothing from a
+reading that does not change, kept saying ``ok`` with the grade they had. Real sensors flicker
+by at least their resolution, and a simulated rig without noise never repeats all five channels
+from one sample to the next (steps, sines, multisines at every health band), so a repeat of
+every channel for 2 s is a stall, not a rig at rest.
+
+A mixin of :class:`hydromon.engine.core.MonitorCore`: ``_same`` (samples in a row equal to the one
+before, every channel) and ``_frozen_warned`` are rows of its ``ROW_STATE``; ``_prev`` holds each
+row's last sample. Not saved in a checkpoint: a restored rig that is still frozen says so again
+after ``FROZEN_S`` seconds of its samples.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["FROZEN_S", "FrozenWatch"]
+
+FROZEN_S = 2.0  # [s] every channel repeating its reading this long is a stalled acquisition
+
+
+class FrozenWatch:
+    """MonitorCore's watch over readings that stopped changing (a mixin)."""
+
+    _prev: np.ndarray  # (rows, 5): each row's last sample (ug, x1, x3, x4, x5); NaN: none yet
+
+    def _frozen_samples(self) -> int:
+        return max(2, int(round(FROZEN_S * self.fleet.sample_rate)))
+
+    def _frozen_flagged(self, rows: np.ndarray, vals: np.ndarray, ev) -> None:
+        """Before the health of a batch: the evaluations of ``ev`` at which their rig's readings
+        have repeated for ``FROZEN_S`` say ``bad-input``; a rig is warned of once a freeze
+        (``rows`` (m,), ``vals`` (m, 6): t, ug, x1, x3, x4, x5, the batch's samples in order)."""
+        n_rows = len(self._same)
+        if len(self._prev) < n_rows:
+            self._prev = np.concatenate([self._prev, np.full((n_rows - len(self._prev), 5), np.nan)])
+        order = np.argsort(rows, kind="stable")
+        r_s, v_s = rows[order], vals[order, 1:]
+        first = np.ones(len(r_s), dtype=np.bool_)
+        first[1:] = r_s[1:] != r_s[:-1]
+        before = np.empty_like(v_s)
+        before[1:] = v_s[:-1]
+        before[first] = self._prev[r_s[first]]
+        same = np.all(v_s == before, axis=1)
+        # run of repeats ending at each sample: the row's run carried into its first sample
+        pos = np.arange(len(r_s))
+        start = np.maximum.accumulate(np.where(~same | first, pos, 0))
+        carry = np.where(same[start] & first[start], self._same[r_s[start]], 0)
+        run = pos - start + same[start] + carry
+        last = np.ones(len(r_s), dtype=np.bool_)
+        last[:-1] = r_s[1:] != r_s[:-1]
+        self._same[r_s[last]] = run[last]
+        self._prev[r_s[last]] = v_s[last]
+        need = self._frozen_samples()
+        if not len(ev) or run.max(initial=0) < need:
+            self._frozen_warned[r_s[last][run[last] < need]] = False
+            return
+        at = np.empty(len(r_s), dtype=np.int64)
+        at[order] = np.arange(len(r_s))  # batch index -> sorted position
+        frozen = run[at[ev.sample]] >= need
+        for i, r in zip(ev.sample[frozen].tolist(), ev.rig[frozen].tolist()):
+            self._b_status[i] = "bad-input"
+            if self.on_warning is not None and not self._frozen_warned[r]:
+                self._frozen_warned[r] = True
+                self.on_warning(self.fleet.ids[r], f"ug, x1, x3, x4 and x5 have repeated one reading for "
+                                                   f"{need / self.fleet.sample_rate:g} s: a stalled acquisition "
+                                                   "re-sending its last reading? Its health says bad-input "
+                                                   "until they change")
+        self._frozen_warned[r_s[last][run[last] < need]] = False

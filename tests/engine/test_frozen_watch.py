@@ -1,0 +1,91 @@
+"""The live monitor says ``bad-input`` for a rig whose readings stopped changing
+(``hydromon.engine.frozen_watch``): a stalled acquisition re-sending its last reading, its seq
+still counting, kept its ``ok`` and grade for as long as it stalled."""
+
+from __future__ import annotations
+
+import orjson
+import pytest
+
+from hydromon.engine.core import MonitorCore
+from hydromon.engine.frames import frame_payload
+from hydromon.engine.frozen_watch import FROZEN_S
+from hydromon.engine.samples import sample_payload
+from plant_sim.degradation import degrade
+from plant_sim.noise import noise_model
+from plant_sim.profiles import parse_profile
+from plant_sim.simulate import simulate
+
+NS = "hydro"
+
+
+@pytest.fixture(scope="module", params=["realistic", "none"])
+def run(request):
+    return simulate(parse_profile("steps"), 16.0, params=degrade(0.3), noise=noise_model(request.param), seed=2)
+
+
+def _frozen(run, spans):
+    """The record with each (start, end) sample span repeating the sample before it."""
+    s = run.samples.copy()
+    for a, b in spans:
+        s[a:b] = s[a - 1]
+    return s
+
+
+def _messages(run, samples, frame=None, rig="a"):
+    if frame is None:
+        return [(f"{NS}/rig/{rig}/sample", sample_payload(k, float(run.t[k]), samples[k].tolist()))
+                for k in range(len(samples))]
+    return [(f"{NS}/rig/{rig}/frame", frame_payload(k, run.t[k:k + frame].tolist(), samples[k:k + frame].T.tolist()))
+            for k in range(0, len(samples), frame)]
+
+
+def _run(msgs, batch=None):
+    warnings = []
+    core = MonitorCore(NS, on_warning=lambda rig, msg: warnings.append((rig, msg)))
+    out, step = [], batch or len(msgs)
+    for j in range(0, len(msgs), step):
+        out += core.process(msgs[j:j + step])
+    health = [orjson.loads(p) for k, p in out if k.endswith("/health")]
+    return health, warnings
+
+
+def test_a_rig_whose_readings_stop_changing_says_bad_input_from_two_seconds_on_and_is_warned_once(run):
+    need = int(FROZEN_S * 100)
+    health, warnings = _run(_messages(run, _frozen(run, [(600, 1000), (1200, 1500)])), batch=50)
+    status = {h["seq"]: h["status"] for h in health}
+    frozen = [s for s in status if 600 + need - 1 <= s < 1000 or 1200 + need - 1 <= s < 1500]
+    assert len(frozen) > 20 and {status[s] for s in frozen} == {"bad-input"}
+    # nothing before: the first 2 s of a freeze may be a rig at rest
+    assert "bad-input" not in {status[s] for s in status if s < 600 + need - 1}
+    if run.noise.name == "realistic":  # nor between them (the estimates a freeze spoils may say so themselves)
+        assert {status[s] for s in status if 1000 <= s < 1200} == {"ok"}
+    told = [w for w in warnings if "repeated one reading" in w[1]]
+    assert len(told) == 2 and told[0][0] == "a", warnings  # once a freeze
+
+
+def test_a_record_that_never_freezes_is_never_flagged(run):
+    health, warnings = _run(_messages(run, run.samples), batch=50)
+    assert "bad-input" not in {h["status"] for h in health} and not any("repeated" in w[1] for w in warnings)
+
+
+def test_the_health_does_not_depend_on_how_the_messages_were_batched_or_framed(run):
+    s = _frozen(run, [(650, 990)])
+    one, _ = _run(_messages(run, s))
+    assert any(h["status"] == "bad-input" for h in one)
+    for batch in (1, 7, 64):
+        assert _run(_messages(run, s), batch)[0] == one, batch
+    assert _run(_messages(run, s, frame=10), batch=3)[0] == one
+
+
+def test_a_forgotten_rig_s_row_carries_no_reading_into_the_next_rig(run):
+    core = MonitorCore(NS)
+    s = run.samples
+    core.process(_messages(run, s[:300], rig="old"))
+    core.forget(["old"])
+    # the next rig in its row starts with the old rig's last reading, repeated: a freeze of its own only
+    frozen = s.copy()
+    frozen[:400] = s[299]
+    out = core.process(_messages(run, frozen[:450], rig="new"))
+    bad = [orjson.loads(p)["seq"] for k, p in out if orjson.loads(p)["status"] == "bad-input"]
+    assert bad and min(bad) >= int(FROZEN_S * 100), bad
