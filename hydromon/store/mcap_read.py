@@ -231,7 +231,8 @@ def sample_rigs(src) -> list[str]:
 
 
 def read_samples(src, rig: str | None = None, rejected: list | None = None,
-                 configs: list | None = None, drive: list | None = None) -> tuple[str, np.ndarray, np.ndarray]:
+                 configs: list | None = None, drive: list | None = None,
+                 bad_configs: list | None = None) -> tuple[str, np.ndarray, np.ndarray]:
     """One rig's samples, sent one per message or in frames: ``(rig_id, data, seq)``.
 
     ``data`` is float64 ``(N, 6)`` with columns :data:`SAMPLE_COLUMNS` (t [s], ug [V],
@@ -244,7 +245,8 @@ def read_samples(src, rig: str | None = None, rejected: list | None = None,
     With a ``configs`` list, the rig's config messages (same namespace) are read in the same
     pass and appended as ``(i, RigConfig)``: i is the index in ``data`` of the first sample
     that follows the config in log time (where a live monitor would switch to it). A config
-    that is not a valid RigConfig is left out, as the monitor rejects it (the recorder logged it).
+    that is not a valid RigConfig is left out, as the monitor rejects it (the recorder logged it),
+    and described in ``bad_configs`` when that list is given.
 
     With a ``drive`` list, each sample's valve drive ``u`` [V] is appended to it (NaN for a
     sample without one), so ``drive[i]`` belongs to ``data[i]``.
@@ -273,8 +275,12 @@ def read_samples(src, rig: str | None = None, rejected: list | None = None,
         if key not in (sample_topic, frame_topic):
             try:
                 configs.append((len(rows), RigConfig.model_validate_json(payload)))
-            except ValidationError:
-                pass
+            except ValidationError as exc:
+                if bad_configs is not None:
+                    err = exc.errors()[0]
+                    field = ".".join(map(str, err.get("loc", ()))) or "payload"
+                    bad_configs.append(f"its config message on {key} at log time {log_ns} ns is not a valid rig "
+                                       f"config ({field}: {err.get('msg')})")
             continue
         try:
             s = (Sample if key == sample_topic else Frame).model_validate_json(payload)

@@ -130,14 +130,22 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
             rejected: list[str] = []
             messages: list[tuple[int, RigConfig]] = []
             drive: list[float] = []
+            bad_configs: list[str] = []
             rig_id, data, seq = mcap_read.read_samples(str(path), rig=rig, rejected=rejected, configs=messages,
-                                                       drive=drive)
+                                                       drive=drive, bad_configs=bad_configs)
             stored = mcap_read.stored_configs(str(path), rig_id) if config is None else []
         except ValueError as exc:
             raise ValueError(_named(name, exc).replace("; choose one", "; choose one with --rig ID")) from None
         where = f"{name} rig {rig_id!r}"
+        if bad_configs and config is None:
+            # the live monitor keeps the constants it had (for a rig's first config: the reference
+            # rig's) and says bad-input; a record graded on constants that are not the rig's is wrong
+            more = f" (and {len(bad_configs) - 1} more)" if len(bad_configs) > 1 else ""
+            raise ValueError(f"{where}: {bad_configs[0]}{more}; it is not graded on other constants: mend the "
+                             "recording's config, or give the rig's constants with --config FILE")
         if len(data) == 0:
-            raise ValueError(f"{name}: rig {rig_id!r} has no samples")
+            why = f": all {len(rejected)} were invalid, the first {rejected[0]}" if rejected else ""
+            raise ValueError(f"{name}: rig {rig_id!r} has no valid samples{why}")
         bad = np.argwhere(~np.isfinite(data))
         if bad.size:
             raise ValueError(f"{name}: sample {int(bad[0, 0])} of rig {rig_id!r} is not finite")

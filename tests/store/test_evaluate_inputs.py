@@ -278,3 +278,22 @@ def test_a_restart_whose_seq_0_was_lost_is_found_as_live_finds_it(run, tmp_path)
     with pytest.raises(ValueError, match=rf"seq goes from 299 back to {20 + RESTART_RUN - 1} at sample "
                                          rf"{300 + RESTART_RUN - 1} .*replay --direct"):
         load_recording(_mcap(tmp_path / "lost0.mcap", msgs))
+
+
+def test_an_invalid_config_message_is_refused_not_graded_on_other_constants(run, tmp_path, capsys):
+    bad = {**RigConfig(p_s=16e6).model_dump(mode="json"), "p_s": "16MPa"}  # a unit string: --config's form only
+    msgs = [(CONFIG_KEY, json.dumps(bad).encode(), 0)] + _messages(run)
+    path = _mcap(tmp_path / "badcfg.mcap", msgs)
+    with pytest.raises(ValueError, match=r"config message on hydro/rig/g4/config at log time 0 ns is not a valid "
+                                         r"rig config \(p_s: .*--config FILE"):
+        load_recording(path)
+    assert load_recording(path, config=RigConfig(p_s=16e6)).config.p_s == 16e6  # the constants given instead
+    assert main(["evaluate", str(path)]) == 2
+    assert "is not a valid rig config" in _text(capsys.readouterr().err)
+
+
+def test_mcap_samples_that_are_all_invalid_say_why(run, tmp_path):
+    msgs = [(k, p[:-1] + b', "temp": 41.5}', t) for k, p, t in _messages(run)]  # a field the contract lacks
+    with pytest.raises(ValueError, match=r"rig 'g4' has no valid samples: all 600 were invalid, the first bad "
+                                         r"sample .*temp.*Extra inputs are not permitted"):
+        load_recording(_mcap(tmp_path / "extra.mcap", msgs))
