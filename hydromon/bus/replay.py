@@ -30,14 +30,25 @@ log = logging.getLogger(__name__)
 class ReplayStats:
     """What a bus replay did: messages put, whole passes, lateness of the sends [s], wall time
     [s]; ``stopped_at``: where in its pass the stop event cut the replay short [s of recording
-    from the window's start], None if it was not."""
+    from the window's start], None if it was not; ``not_keys``: messages skipped per topic that
+    cannot be a zenoh key (``/tf``, a ROS topic: a leading slash), which no bus can carry."""
 
     published: int = 0
     passes: int = 0
+    not_keys: dict = field(default_factory=dict)  # topic that is not a zenoh key -> messages skipped
     stopped_at: float | None = None
     max_late: float = 0.0
     wall: float = 0.0
     keys: set = field(default_factory=set)
+
+
+def _is_key(topic: str) -> bool:
+    """Whether ``topic`` is a valid zenoh key expression (so it can be published)."""
+    try:
+        zenoh.KeyExpr(topic)
+    except Exception:  # zenoh's own verdict (ZError and kin)
+        return False
+    return True
 
 
 def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable[str] | None = None,
@@ -72,9 +83,10 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
     match = KeyFilter(keys)
     stats = ReplayStats()
     pubs: dict[str, zenoh.Publisher] = {}
+    not_keys = {key for key in recording_topics(src) if not _is_key(key)}
     if wait_s > 0:
         for key in recording_topics(src):
-            if match(key) and key not in pubs:
+            if match(key) and key not in pubs and key not in not_keys:
                 pubs[key] = session.declare_publisher(key, encoding=JSON, congestion_control=congestion)
         deadline = clock() + wait_s
         while not any(p.matching_status.matching for p in pubs.values()) and clock() < deadline:
@@ -95,6 +107,9 @@ def replay_bus(session: zenoh.Session, src, *, rate: float = 1.0, keys: Iterable
                 last_ns = log_ns
                 n += 1
                 if not match(key):
+                    continue
+                if key in not_keys:
+                    stats.not_keys[key] = stats.not_keys.get(key, 0) + 1
                     continue
                 offset = (base_ns + log_ns - first_ns) / 1e9
                 if rate > 0:

@@ -384,3 +384,15 @@ def test_a_replay_cut_short_exits_1_unless_looping():
     assert exit_code(ReplayStats(published=10, passes=1), loop=False) == 0
     assert exit_code(ReplayStats(published=10, passes=0, stopped_at=3.0), loop=False) == 1
     assert exit_code(ReplayStats(published=10, passes=2, stopped_at=3.0), loop=True) == 0
+
+
+def test_a_bus_replay_skips_topics_that_are_not_zenoh_keys_and_says_so(recording, tmp_path, capsys, monkeypatch):
+    import contextlib
+
+    # a ROS-style topic (a leading slash) cannot be a zenoh key: declaring it raised mid-replay
+    ros = _rewrite(recording, tmp_path / "ros.mcap", key=lambda k: "/" + k if k.endswith("/config") else k, n=600)
+    session = _FakeSession(_FakeTime())
+    monkeypatch.setattr("hydromon.cli.commands.replay.session_from_args", lambda args: contextlib.nullcontext(session))
+    rc, err = _cli(["replay", str(ros), "--quiet", "--rate", "0", "--wait", "0"], capsys)
+    assert rc == 0 and session.sent and not any(k.startswith("/") for k, *_ in session.sent)
+    assert "that are not zenoh keys and cannot be published: '/hydro/rig/" in err and "Traceback" not in err

@@ -193,6 +193,11 @@ def run(args) -> int:
         f", stopped (Ctrl-C/SIGTERM) {stats.stopped_at:.1f} s into a pass of {total:.1f} s"
     print(f"hydromon replay: {stats.published} messages on {len(stats.keys)} key(s), {stats.passes} pass(es)"
           f"{stopped} in {stats.wall:.2f} s; max lateness {stats.max_late * 1e3:.1f} ms", file=sys.stderr)
+    if stats.not_keys:
+        topics = sorted(stats.not_keys)
+        print(f"hydromon replay: skipped {sum(stats.not_keys.values())} message(s) on {len(topics)} topic(s) that "
+              f"are not zenoh keys and cannot be published: {', '.join(repr(t) for t in topics[:5])}"
+              + (", ..." if len(topics) > 5 else ""), file=sys.stderr)
     if stats.published == 0 and not stop.is_set():
         raise NothingToReplay(f"{args.file}: no message in the window (--start, --duration, --keys): nothing sent")
     code = exit_code(stats, args.loop)
