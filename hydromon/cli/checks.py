@@ -86,6 +86,16 @@ def writable_file(option: str, path: str | os.PathLike) -> None:
         raise ValueError(f"{option} {str(p)!r} is not writable")
 
 
+def not_an_input(option: str, path: str | os.PathLike, inputs) -> None:
+    """``path`` (an output file) is none of ``inputs`` (paths this command reads; None ignored):
+    writing it would destroy what the command was given, whatever ``--force`` says."""
+    out = Path(path).resolve()
+    for given in inputs:
+        if given is not None and Path(given).resolve() == out:
+            raise ValueError(f"{option} {str(path)!r} is one of this command's inputs; writing it would destroy "
+                             "it: give another file")
+
+
 def writable_dir(option: str, path: str | os.PathLike) -> None:
     """``path`` is a writable directory, or can be created as one (its nearest existing
     ancestor is a writable directory)."""

@@ -33,8 +33,9 @@ def add_arguments(parser) -> None:
                         help="none | realistic | stress | pct:F (default none)")
     parser.add_argument("--seed", type=int, default=0, help="base noise seed: run i uses seed + i (default 0)")
     parser.add_argument("--drop-unseparable", action="store_true",
-                        help="leave out a parameter whose labels overlap too much for monotone edges "
-                             "(default: error), e.g. B_fv under realistic noise")
+                        help="simulated runs: leave out a parameter whose labels overlap too much for monotone "
+                             "edges (default: error), e.g. B_fv under realistic noise; --labelled always leaves "
+                             "such a parameter out and says so")
 
 
 def comparison_table(ranges, dropped, reference, reference_title: str = "paper (Table 3)"):
@@ -67,7 +68,7 @@ def comparison_table(ranges, dropped, reference, reference_title: str = "paper (
 def run_labelled(args) -> int:
     import numpy as np
 
-    from hydromon.cli.checks import writable_file
+    from hydromon.cli.checks import not_an_input, writable_file
     from hydromon.cli.rigconfig import config_from_args
     from hydromon.contract import GRADES, PARAM_NAMES
     from hydromon.engine.evaluate import evaluate
@@ -80,6 +81,7 @@ def run_labelled(args) -> int:
         raise ValueError("--labelled writes its ranges: give --out FILE")
     writable_file("--out", args.out)
     entries = load_labelled(args.labelled)
+    not_an_input("--out", args.out, [args.labelled, args.baseline, args.config, *(e.path for e in entries)])
     config = config_from_args(args)
     baseline = Ranges.load(args.baseline) if args.baseline else None
     rows, labels, rig = [], [], None
@@ -91,9 +93,13 @@ def run_labelled(args) -> int:
             raise ValueError(f"{e.path}: its rig constants differ from the first record's: one list, one rig")
         ev = evaluate(rec, ranges=baseline)
         a = ev.assessment
-        state = "converged" if a.converged else "not converged: left out"
+        # a record whose input is bad (impossible estimates, readings in other units, x1 beyond a
+        # chamber) would put its wrong-unit estimates into the edges of every other rig's grade
+        bad = ev.status == "bad-input"
+        state = ("left out: its input is bad (" + (ev.units or ", ".join(a.implausible) or "status bad-input") + ")"
+                 if bad else "converged" if a.converged else "not converged: left out")
         print(f"hydromon calibrate: {i}/{len(entries)} {e.path} ({GRADES[e.grade]}): {state}", file=sys.stderr)
-        if a.converged:
+        if a.converged and not bad:
             rows.append([a.params[k] for k in PARAM_NAMES])
             labels.append(e.grade)
     if not rows:

@@ -51,12 +51,13 @@ class _Progress:
 
 
 def run(args) -> int:
-    from hydromon.cli.checks import at_least, replace_on_success, writable_file
+    from hydromon.cli.checks import at_least, not_an_input, replace_on_success, writable_file
     from hydromon.report.commission import render, to_json
     from hydromon.store.recording import load_recording
     from monitor.commission import commission
 
     writable_file("--out", args.out)
+    not_an_input("--out", args.out, [args.file, getattr(args, "config", None)])
     if Path(args.out).exists() and not args.force:
         raise ValueError(f"--out {args.out!r} exists: it may hold a rig's baseline; give --force to replace it")
     at_least("--runs", args.runs, 0)

@@ -1,0 +1,71 @@
+"""``hydromon calibrate --labelled``: a record whose input is bad is left out, not put into the
+edges; ``--out`` never writes over what the command reads."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from hydromon.cli.main import main
+from hydromon.store.csvfile import csv_text
+from plant_sim.degradation import degrade
+from plant_sim.noise import noise_model
+from plant_sim.profiles import parse_profile
+from plant_sim.simulate import simulate
+
+GRADES = ("health", "sub-health", "average", "deterioration", "fault")
+
+
+@pytest.fixture(scope="module")
+def records(tmp_path_factory):
+    """Five labelled 20 s records, one per grade, and the healthy one with x3's sign turned."""
+    d = tmp_path_factory.mktemp("labelled")
+    paths = {}
+    for g, sev in zip(GRADES, (0.05, 0.3, 0.5, 0.7, 0.9)):
+        run = simulate(parse_profile("paper-var"), 20.0, params=degrade(sev), noise=noise_model("realistic"), seed=7)
+        (d / f"{g}.csv").write_text(csv_text(run.t, run.samples))
+        paths[g] = d / f"{g}.csv"
+        if g == "health":
+            s = run.samples.copy()
+            s[:, 2] *= -1.0
+            (d / "turned.csv").write_text(csv_text(run.t, s))
+    return d, paths
+
+
+def _list(d, rows):
+    path = d / "list.csv"
+    path.write_text("recording,grade\n" + "".join(f"{p},{g}\n" for p, g in rows))
+    return path
+
+
+def test_a_record_with_bad_input_is_left_out_and_said_so(records, tmp_path, capsys):
+    d, paths = records
+    listed = _list(d, [(paths[g], g) for g in GRADES] + [(d / "turned.csv", "health")])
+    out = tmp_path / "ranges.json"
+    assert main(["calibrate", "--labelled", str(listed), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "turned.csv (health): left out: its input is bad" in " ".join(err.split()), err
+    edges = json.loads(out.read_text())
+    assert edges  # written, from the five good records only
+    # the same list without the bad record gives the same ranges
+    again = tmp_path / "again.json"
+    assert main(["calibrate", "--labelled", str(_list(d, [(paths[g], g) for g in GRADES])), "--out", str(again)]) == 0
+    assert json.loads(again.read_text()) == edges
+
+
+@pytest.mark.parametrize("which", ["record", "list"])
+def test_out_is_never_one_of_the_inputs(records, capsys, which):
+    d, paths = records
+    listed = _list(d, [(paths[g], g) for g in GRADES])
+    target = paths["average"] if which == "record" else listed
+    before = target.read_bytes()
+    assert main(["calibrate", "--labelled", str(listed), "--out", str(target)]) == 2
+    assert "is one of this command's inputs" in capsys.readouterr().err and target.read_bytes() == before
+
+
+def test_commission_never_writes_over_its_recording_even_with_force(records, capsys):
+    _, paths = records
+    before = paths["health"].read_bytes()
+    assert main(["commission", str(paths["health"]), "--out", str(paths["health"]), "--force", "--runs", "0"]) == 2
+    assert "is one of this command's inputs" in capsys.readouterr().err and paths["health"].read_bytes() == before
