@@ -29,6 +29,7 @@ import time
 import foxglove
 import orjson
 import zenoh
+from pydantic import ValidationError
 
 from hydromon.contract import DEFAULT_NAMESPACE, Event, Health, RigConfig, Sample, parse_rig_key, sample_key
 from hydromon.dashboard.fleet import Fleet
@@ -65,6 +66,15 @@ FLEET_SCHEMA = {
         "counts": {"type": "object", "additionalProperties": {"type": "integer"}}},
     "required": ["rigs"],
 }
+
+
+def _valid(model, payload: bytes) -> bool:
+    """Whether ``payload`` is a ``model`` (a contract payload): the bridge shows nothing else."""
+    try:
+        model.model_validate_json(payload)
+    except ValidationError:
+        return False
+    return True
 
 
 def channel_schemas() -> dict[str, dict]:
@@ -164,7 +174,9 @@ class FoxgloveBridge:
             if leaf == "health":
                 self._log_health(key, rig, payload)
             elif leaf in ("event", "config"):
-                self.channels[key].log(payload, log_time=time.time_ns())
+                ch = self.channels[key]
+                if ch.has_sinks() and _valid(Event if leaf == "event" else RigConfig, payload):
+                    ch.log(payload, log_time=time.time_ns())
 
         for leaf in ("health", "event", "config"):
             self._decls.append(self.session.declare_subscriber(f"{ns}/rig/{self.rigs}/{leaf}", on_message))
@@ -186,10 +198,15 @@ class FoxgloveBridge:
         if not ch.has_sinks():
             return
         try:
-            h = orjson.loads(payload)
-            h["bands"] = bands(h, self.fleet.ranges_for(rig))
-        except (orjson.JSONDecodeError, TypeError, KeyError, AttributeError):
+            valid = Health.model_validate_json(payload)
+        except ValidationError:
             return  # not a contract payload: the dashboard counts it; Foxglove is not shown it
+        # as on the dashboard's pages: not a verdict of an older start of the rig's monitor, nor of
+        # a node that is not up or not the rig's (``engine.board.Board.claim``)
+        if not self.fleet.board.claim(rig, valid.node, valid.epoch):
+            return
+        h = orjson.loads(payload)
+        h["bands"] = bands(h, self.fleet.ranges_for(rig))
         ch.log(orjson.dumps(h), log_time=time.time_ns())
 
     def _fleet_loop(self) -> None:

@@ -153,6 +153,10 @@ def _as_the_foxglove_app(client, bridge, pub_session) -> None:
     ev = Event.model_validate({"seq": 5, "t": 0.05, "kind": "grade", "from": "deterioration", "to": "fault",
                                "reason": "valve gain -60 % of its baseline", "node": "mon1"})
     pub_session.put("hydro/rig/table4-g3/event", orjson.dumps(ev.model_dump(by_alias=True)))
+    # payloads that are not the contract's: never shown (every message below validates against its schema)
+    pub_session.put("hydro/rig/table4-g3/health", b'{"params":{},"grade":"<img src=x>","level":99,"confidence":7}')
+    pub_session.put("hydro/rig/table4-g3/event", b'{"kind":"grade","to":"fault","reason":"forged, not an Event"}')
+    pub_session.put("hydro/rig/table4-g3/config", b'{"A1": -1}')
 
     def got_all():
         client.pump(0.1)
@@ -168,7 +172,7 @@ def _as_the_foxglove_app(client, bridge, pub_session) -> None:
     assert h["grade"] == "fault"
     assert h["bands"]["K_sv"]["edges"] == list(Ranges.default().params["K_sv"].edges)
     assert h["bands"]["K_sv"]["lo"] == pytest.approx(2.4e-4 - 3e-6)
-    assert client.messages[2][0]["to"] == "fault"
+    assert client.messages[2][0]["to"] == "fault" and len(client.messages[2]) == 1
     fleet = client.messages[4][-1]
     assert {r["rig"] for r in fleet["rigs"]} == set(DEFAULT_RIGS)
     assert [r["rig"] for r in fleet["rigs"]] == ["table4-g3", "table4-g5", "table4-g4", "table4-g1", "table4-g2"]
