@@ -104,6 +104,8 @@ class Hub:
             return {"type": "fleet-delta", "now": tick.now, "rows": tick.rows, "counts": tick.counts}
         if view == "events":
             return {"type": "events-delta", "now": tick.now, "events": tick.events} if tick.events else None
+        if rig in tick.resnap:  # its first verdict or new ranges: the page is drawn anew
+            return self.fleet.rig_snapshot(rig, tick.now)
         row = next((r for r in tick.rows if r["rig"] == rig), None)
         events = [e for e in tick.events if e.get("rig") == rig]
         return {"type": "rig-delta", "now": tick.now, "row": row, "points": tick.points.get(rig), "events": events}

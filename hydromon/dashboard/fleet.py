@@ -68,6 +68,7 @@ class Tick:
     events: list[dict] = field(default_factory=list)        # new events, oldest first
     points: dict[str, dict] = field(default_factory=dict)   # rig -> new history points (watched rigs)
     ranges_wanted: list[str] = field(default_factory=list)  # rigs whose ranges to ask the monitors for
+    resnap: set[str] = field(default_factory=set)  # rigs whose page needs a whole snapshot (first verdict, ranges)
 
 
 class Fleet:
@@ -90,6 +91,7 @@ class Fleet:
         self.not_shown = 0                       # verdicts Board.claim does not show
         self.history_shape: tuple | None = None  # (fine, coarse) of new rigs' histories
         self._raw: dict[str, tuple[bytes, float]] = {}
+        self._resnap: set[str] = set()  # rigs whose ranges changed since the last tick
         self._raw_events: list[tuple[str, bytes, float]] = []
         self._monitor_changes: list[tuple[str, bool, float]] = []
         self._rows: dict[str, dict] = {}
@@ -121,6 +123,7 @@ class Fleet:
         with self.lock:
             self.ranges[rig] = ranges
             self._rows.pop(rig, None)  # the words change with the baseline
+            self._resnap.add(rig)  # an open rig page draws the bands anew
 
     def ranges_for(self, rig: str):
         return self.ranges.get(rig) or self.fallback_ranges
@@ -142,6 +145,7 @@ class Fleet:
         changes, self._monitor_changes = self._monitor_changes, []
         out = Tick(now=now)
         with self.lock:
+            out.resnap, self._resnap = self._resnap, set()
             for node, up, wall in changes:
                 self._monitor(node, up, wall, out)
             for rig, (payload, wall) in raw.items():
@@ -171,6 +175,8 @@ class Fleet:
             self.not_shown += 1
             return
         prev = self.latest.get(rig)
+        if prev is None:
+            out.resnap.add(rig)  # a rig page opened before it: its graded parameters and ranges come now
         if prev is None or prev["grade"] != h["grade"]:
             self.since[rig] = wall
         if prev is None or prev["ranges"] != h["ranges"] or prev["node"] != h["node"]:

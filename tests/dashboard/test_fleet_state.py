@@ -130,3 +130,21 @@ def test_event_log_survives_a_restart_with_its_acknowledgements(tmp_path):
     assert got[1]["ack"] == {"wall": 3.0, "comment": "valve replaced", "by": "anna"}
     assert log.add({"rig": "r4"})["id"] == 3
     log.close()
+
+
+def test_a_rig_page_opened_before_the_rig_s_first_verdict_or_ranges_is_sent_them_whole():
+    from hydromon.dashboard.app import Hub
+
+    fleet = Fleet(EventLog(None))
+    hub = Hub(fleet, clock=lambda: 1.0)
+    first = hub.snapshot("rig", "r1")
+    assert first["health"] is None and first["ranges"] is None  # opened before anything came
+    fleet.put_health("r1", health(), 1.0)
+    msg = hub.messages(fleet.tick(1.1, {"r1"}), "rig", "r1")
+    assert msg["type"] == "rig" and msg["health"]["param_grades"] == {"K_sv": "health", "f_c": "health"}
+    msg = hub.messages(fleet.tick(1.2, {"r1"}), "rig", "r1")
+    assert msg["type"] == "rig-delta"  # after that, what changed
+    fleet.set_ranges("r1", Ranges.default())  # the monitor answered the ranges query
+    msg = hub.messages(fleet.tick(1.3, {"r1"}), "rig", "r1")
+    assert msg["type"] == "rig" and msg["ranges"] is not None and msg["ranges_from"] == "monitor"
+    assert hub.messages(fleet.tick(1.4, {"r1"}), "rig", "r1")["type"] == "rig-delta"

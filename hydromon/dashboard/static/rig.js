@@ -226,7 +226,9 @@ connect({view: "rig", rig: RIG}, (msg) => {
     for (const u of plots.values()) u.destroy();
     plots.clear();
     for (const id of ["graded", "others"]) document.getElementById(id).replaceChildren();
-    setText(document.getElementById("rangesnote"), !ranges ? "Health ranges: not known (the rig's monitor did not answer the ranges query): no bands drawn." :
+    setText(document.getElementById("rangesnote"), !ranges ? (msg.live === false ?
+      "Health ranges: a recording holds none (give the dashboard --ranges FILE): no bands drawn." :
+      "Health ranges: not known yet (the rig's monitor has not answered the ranges query): no bands drawn.") :
       (msg.ranges_from === "fallback" ? "Health ranges: the dashboard's --ranges (the monitor did not answer the ranges query)." :
         "Health ranges: as the rig's monitor grades it; dashed line: the rig's baseline."));
     drawEvents();
