@@ -29,6 +29,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from hydromon.contract import valid_rig_id
+from hydromon.dashboard.eventlog import AlreadyAcknowledged
 from hydromon.dashboard.fleet import Fleet, Tick
 
 __all__ = ["build_app", "Hub", "CSP", "STATIC", "PUSH_S"]
@@ -176,10 +177,12 @@ def build_app(fleet: Fleet, *, loopback_only: bool = True, on_tick=None, info: d
             return PlainTextResponse("expected application/json", 415)
         try:
             body = orjson.loads(await request.body())
-            ev = fleet.events.ack(int(request.path_params["event_id"]), str(body.get("comment", "")),
-                                  str(body.get("by", "")), time.time())
+            ev = fleet.events.ack(int(request.path_params["event_id"]), body.get("comment", ""),
+                                  body.get("by", ""), time.time())
         except KeyError:
             return PlainTextResponse("no such event", 404)
+        except AlreadyAcknowledged as exc:
+            return PlainTextResponse(str(exc), 409)
         except (ValueError, TypeError, AttributeError, orjson.JSONDecodeError) as exc:
             return PlainTextResponse(f"bad acknowledgement: {exc}", 400)
         await hub.broadcast(lambda view, rig: {"type": "ack", "event": ev}

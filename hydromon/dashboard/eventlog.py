@@ -13,17 +13,22 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 from collections import deque
 from pathlib import Path
 
 import orjson
 
-__all__ = ["EventLog", "COMMENT_MAX", "BY_MAX"]
+__all__ = ["EventLog", "AlreadyAcknowledged", "COMMENT_MAX", "BY_MAX"]
 
 COMMENT_MAX = 500
 BY_MAX = 64
 KEEP = 5000
 """Events held in memory (the file keeps every one)."""
+
+
+class AlreadyAcknowledged(ValueError):
+    """The event was acknowledged before (the message says by whom and when)."""
 
 
 class EventLog:
@@ -87,14 +92,22 @@ class EventLog:
             return ev
 
     def ack(self, event_id: int, comment: str, by: str, wall: float) -> dict:
-        """Acknowledge event ``event_id`` with ``comment``; returns the event. KeyError if it is not
-        held, ValueError if the comment or name is too long."""
+        """Acknowledge event ``event_id`` with ``comment``, by the person named ``by``; returns the
+        event. KeyError if it is not held; ValueError if the comment or name is not text or too
+        long, or no name is given; :class:`AlreadyAcknowledged` if someone did so before (an
+        acknowledgement is a record of who looked: a second one must not replace the first)."""
         if not isinstance(comment, str) or len(comment) > COMMENT_MAX:
-            raise ValueError(f"comment: at most {COMMENT_MAX} characters")
+            raise ValueError(f"comment: text of at most {COMMENT_MAX} characters")
         if not isinstance(by, str) or len(by) > BY_MAX:
-            raise ValueError(f"by: at most {BY_MAX} characters")
+            raise ValueError(f"by: text of at most {BY_MAX} characters")
+        if not by.strip():
+            raise ValueError("by: give the name of who acknowledges it")
         with self._lock:
             ev = self.by_id[event_id]
+            if ev.get("ack") is not None:
+                a = ev["ack"]
+                raise AlreadyAcknowledged(f"already acknowledged by {a['by'] or 'someone'} at "
+                                          f"{time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime(a['wall']))}")
             ev["ack"] = {"wall": wall, "comment": comment, "by": by}
             self._write({"ack": event_id, **ev["ack"]})
             return ev

@@ -85,6 +85,14 @@ def test_hostile_payload_text_is_shown_as_text(tmp_path):
             status, _, body = _request(port, "POST", f"/api/events/{ev_id}/ack",
                                        {"Origin": f"http://127.0.0.1:{port}", "Content-Type": "application/json"}, ack)
             assert status == 200, body
+            again = orjson.dumps({"comment": "mine now", "by": "bob"})  # a second one never replaces the first
+            same = {"Origin": f"http://127.0.0.1:{port}", "Content-Type": "application/json"}
+            status, _, body = _request(port, "POST", f"/api/events/{ev_id}/ack", same, again)
+            assert status == 409 and body.startswith(b"already acknowledged by "), (status, body)
+            status, _, _ = _request(port, "POST", f"/api/events/{ev_id}/ack",
+                                    {"Origin": f"http://127.0.0.1:{port}", "Content-Type": "application/json"},
+                                    orjson.dumps({"comment": None, "by": ["x"]}))
+            assert status == 400
 
             with chromium() as ctx:
                 pages = {}

@@ -148,3 +148,20 @@ def test_a_rig_page_opened_before_the_rig_s_first_verdict_or_ranges_is_sent_them
     msg = hub.messages(fleet.tick(1.3, {"r1"}), "rig", "r1")
     assert msg["type"] == "rig" and msg["ranges"] is not None and msg["ranges_from"] == "monitor"
     assert hub.messages(fleet.tick(1.4, {"r1"}), "rig", "r1")["type"] == "rig-delta"
+
+
+def test_an_acknowledgement_needs_a_name_in_text_and_is_never_replaced():
+    import pytest
+
+    from hydromon.dashboard.eventlog import AlreadyAcknowledged
+
+    log = EventLog(None)
+    ev = log.add({"wall": 1.0, "rig": "r1", "kind": "grade", "from": "health", "to": "fault", "reason": "x"})
+    for comment, by in (("", ""), ("looked", "  "), (None, "anna"), ("ok", ["x"]), ("ok", 7)):
+        with pytest.raises(ValueError, match="^(comment|by): "):
+            log.ack(ev["id"], comment, by, 2.0)
+    assert log.recent()[0].get("ack") is None
+    log.ack(ev["id"], "valve replaced", "anna", 3.0)
+    with pytest.raises(AlreadyAcknowledged, match="already acknowledged by anna at 1970-01-01 00:00:03 UTC"):
+        log.ack(ev["id"], "mine now", "bob", 4.0)
+    assert log.recent()[0]["ack"] == {"wall": 3.0, "comment": "valve replaced", "by": "anna"}
