@@ -12,7 +12,7 @@ import re
 
 __all__ = [
     "DEFAULT_NAMESPACE", "LEAVES", "SAMPLE_LEAVES", "RIG_ID_RE", "valid_rig_id", "check_namespace", "rig_key", "sample_key",
-    "frame_key",
+    "frame_key", "monitor_of_token",
     "health_key", "config_key", "event_key", "ranges_key", "liveliness_key", "rig_key_parts", "split_rig_key", "parse_rig_key",
 ]
 
@@ -74,6 +74,13 @@ def liveliness_key(node: str, ns: str = DEFAULT_NAMESPACE) -> str:
     if not valid_rig_id(node):
         raise ValueError(f"node name {node!r} must be 1-64 chars of [A-Za-z0-9_-]")
     return f"{check_namespace(ns)}/monitor/{node}"
+
+
+def monitor_of_token(key: str) -> str | None:
+    """The node name of a liveliness token ``<ns>/monitor/<node>`` (the key as heard), or None when
+    its last chunk is no node name (``liveliness_key``'s rule): such a token is no monitor."""
+    node = key.rsplit("/", 1)[-1]
+    return node if valid_rig_id(node) else None
 
 
 def failover_key(group: str, ns: str = DEFAULT_NAMESPACE) -> str:

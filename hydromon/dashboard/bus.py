@@ -21,7 +21,7 @@ import time
 
 import zenoh
 
-from hydromon.contract import DEFAULT_NAMESPACE, parse_rig_key, ranges_key
+from hydromon.contract import DEFAULT_NAMESPACE, monitor_of_token, parse_rig_key, ranges_key
 from hydromon.dashboard.fleet import Fleet
 from monitor.ranges import Ranges
 
@@ -58,8 +58,9 @@ class BusFeed:
                 fleet.put_event(parsed[0], sample.payload.to_bytes(), clock())
 
         def on_token(sample: zenoh.Sample) -> None:
-            node = str(sample.key_expr).rsplit("/", 1)[-1]
-            fleet.put_monitor(node, sample.kind == zenoh.SampleKind.PUT, clock())
+            node = monitor_of_token(str(sample.key_expr))
+            if node is not None:
+                fleet.put_monitor(node, sample.kind == zenoh.SampleKind.PUT, clock())
 
         # subscribe first: a verdict published while the query runs is not missed
         self._decls.append(self.session.declare_subscriber(f"{ns}/rig/{self.rigs}/health", on_health))
@@ -76,8 +77,9 @@ class BusFeed:
     def _query_health(self, wait_s: float) -> None:
         # the monitors up now first, as watch does: only a live monitor's verdict is shown
         for reply in self.session.liveliness().get(f"{self.ns}/monitor/*", timeout=min(wait_s, QUERY_TIMEOUT_S)):
-            if reply.ok is not None:
-                self.fleet.put_monitor(str(reply.ok.key_expr).rsplit("/", 1)[-1], True, self.clock())
+            node = monitor_of_token(str(reply.ok.key_expr)) if reply.ok is not None else None
+            if node is not None:
+                self.fleet.put_monitor(node, True, self.clock())
         seen = set()
         for reply in self.session.get(f"{self.ns}/rig/{self.rigs}/health", timeout=wait_s):
             if self._stop.is_set():

@@ -52,7 +52,7 @@ def run(args) -> int:
     import zenoh
 
     from hydromon.cli import checks
-    from hydromon.contract import check_namespace
+    from hydromon.contract import check_namespace, monitor_of_token
     from hydromon.engine.board import Board
     from hydromon.report.board import render_board_plain, render_board_rich
 
@@ -79,8 +79,8 @@ def run(args) -> int:
             # shown only from a live monitor, and a rig whose monitor is gone says so
             monitors = f"{args.namespace}/monitor/*"
             for reply in session.liveliness().get(monitors, timeout=min(args.wait, 2.0)):
-                if reply.ok is not None:
-                    board.monitor(str(reply.ok.key_expr).rsplit("/", 1)[1], True)
+                if reply.ok is not None and (node := monitor_of_token(str(reply.ok.key_expr))) is not None:
+                    board.monitor(node, True)
             live = None if args.once else session.liveliness().declare_subscriber(
                 monitors, zenoh.handlers.FifoChannel(10_000), history=True)
             # subscribe first: a verdict published while the query runs is not missed
@@ -172,12 +172,15 @@ def _follow(subs, live, ages, args, stop, clock, top, render_plain, render_rich,
     and event subscribers); redraw the board until Ctrl-C or --duration."""
     import zenoh
 
+    from hydromon.contract import monitor_of_token
+
     board = ages.board
     deadline = None if args.duration is None else clock() + args.duration
 
     def drain():
         while (m := live.try_recv()) is not None:
-            board.monitor(str(m.key_expr).rsplit("/", 1)[1], m.kind == zenoh.SampleKind.PUT)
+            if (node := monitor_of_token(str(m.key_expr))) is not None:
+                board.monitor(node, m.kind == zenoh.SampleKind.PUT)
         while (m := subs[0].try_recv()) is not None:
             ages.update(str(m.key_expr), m.payload.to_bytes(), clock())
         while (m := subs[1].try_recv()) is not None:
