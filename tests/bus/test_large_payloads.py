@@ -69,7 +69,10 @@ def test_payloads_beyond_the_limit_are_counted_unread_and_flag_their_rig():
     clean = [orjson.loads(p) for _, p in MonitorCore().process(good)]
     statuses = [h["status"] for h in got]
     flagged = [i for i, s in enumerate(statuses) if s == "bad-input"]
-    assert len(got) == len(clean) and len(flagged) == 1 and got[flagged[0]]["seq"] >= 150, statuses
+    # one window, or two when the frame key's junk is taken after the sample key's window closed
+    # (the node drains samples before frames)
+    assert len(got) == len(clean) and 1 <= len(flagged) <= 2, statuses
+    assert all(150 <= got[i]["seq"] < 200 for i in flagged), statuses
     for i, (h, c) in enumerate(zip(got, clean)):
         h.pop("node", None), h.pop("epoch", None)
         if i not in flagged:
