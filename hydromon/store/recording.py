@@ -21,7 +21,7 @@ from hydromon.contract import RigConfig
 from hydromon.engine.record import Recording
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, OUT_OF_ORDER, RESTART, sequence_order
 from hydromon.store.csvfile import read_csv
-from hydromon.store.sampling import check_sampling, time_jitter
+from hydromon.store.sampling import check_sampling, check_seq_rate, time_jitter
 from monitor.drive import command_for_drive
 
 __all__ = ["Recording", "load_recording", "recording_rigs"]
@@ -179,6 +179,7 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         restarts = [int(g - shift[g]) for g in gaps_at if keep[g] and g - shift[g] > 0]
         idx = idx[keep]
         data, seq = data[idx], seq[idx]
+        check_seq_rate(data[:, 0], seq, config.sample_rate, where)
         driven = _take_drive(data, np.array(drive)[idx], config)
         jitter, jitter_max = time_jitter(data[:, 0], seq, config.sample_rate)
         return Recording(rig_id, data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RATE_TOL", "TYPICAL_TOL", "check_increasing", "check_sampling", "time_jitter"]
+__all__ = ["RATE_TOL", "TYPICAL_TOL", "check_increasing", "check_sampling", "check_seq_rate", "time_jitter"]
 
 
 RATE_TOL = 0.01  # allowed relative deviation of each sample interval from 1 / sample_rate
@@ -75,3 +75,21 @@ def time_jitter(t: np.ndarray, seq: np.ndarray, sample_rate: float) -> tuple[int
     off = np.abs(np.diff(t) - np.diff(seq) / sample_rate)
     bad = off[off > RATE_TOL / sample_rate]
     return int(bad.size), float(bad.max()) if bad.size else 0.0
+
+
+def check_seq_rate(t: np.ndarray, seq: np.ndarray, sample_rate: float, where: str) -> None:
+    """A record taken by seq (MCAP) must still be at its config's rate: the median time per seq
+    step [s] within TYPICAL_TOL of 1/sample_rate [Hz], else ValueError naming ``where``. Jitter is
+    counted, not refused (:func:`time_jitter`), but a config at another rate than the rig's time
+    stamps would put every rate in the estimates off by that factor (a 40 s record at 100 Hz under
+    a 50 Hz config was commissioned as 80 s, its damping twice the true)."""
+    steps = np.diff(seq)
+    ok = steps > 0
+    if not ok.any():
+        return
+    typical = float(np.median(np.diff(t)[ok] / steps[ok]))
+    h = 1.0 / sample_rate
+    if abs(typical / h - 1) > TYPICAL_TOL:
+        raise ValueError(f"{where}: its time stamps step {typical:.6g} s per seq, but its config says the rig samples "
+                         f"every {h!r} s ({sample_rate:g} Hz): {_rate_hint(typical, h, sample_rate)}; if the "
+                         "recording's config is wrong, give the rig's constants with --config FILE")

@@ -297,3 +297,13 @@ def test_mcap_samples_that_are_all_invalid_say_why(run, tmp_path):
     with pytest.raises(ValueError, match=r"rig 'g4' has no valid samples: all 600 were invalid, the first bad "
                                          r"sample .*temp.*Extra inputs are not permitted"):
         load_recording(_mcap(tmp_path / "extra.mcap", msgs))
+
+
+def test_an_mcap_whose_config_rate_its_time_stamps_contradict_is_refused(run, tmp_path):
+    msgs = _messages(run, configs=[(0, RigConfig(sample_rate=50.0))])  # samples 10 ms apart
+    with pytest.raises(ValueError, match=r"rig 'g4': its time stamps step 0\.01 s per seq, but its config says the "
+                                         r"rig samples every 0\.02 s \(50 Hz\): the file looks sampled at 100 Hz"):
+        load_recording(_mcap(tmp_path / "rate50.mcap", msgs))
+    jittered = _messages(run, times=run.t + np.random.default_rng(3).uniform(-2e-3, 2e-3, len(run.t)))
+    rec = load_recording(_mcap(tmp_path / "jitter.mcap", jittered))  # jitter is counted, not refused
+    assert rec.jitter > 0
