@@ -16,6 +16,7 @@ from monitor.grading import Ranges
 from monitor.ident_options import IdentOptions
 from monitor.evaluations import Assessment, Events
 from monitor.pipeline import Pipeline
+from hydromon.engine.frozen_watch import frozen_words
 from monitor.readings import record_slip
 from monitor.refine import Refinement, refine
 
@@ -37,17 +38,20 @@ class Evaluation:
     options: IdentOptions | None = None  # the identifier's options (None: defaults)
     uncalibrated: str | None = None  # why no ranges grade the rig (None: some do)
     units: str | None = None  # why the readings (glitches mended) cannot be in the config's units
+    frozen: str | None = None  # why the readings cannot be trusted: they repeat one reading (a stall)
 
     @property
     def status(self) -> str:
         """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``), x1
         went beyond a chamber's end or a reading cannot be in the config's units
-        (``monitor.readings``), ``uncalibrated`` when no ranges were made for the rig's
+        (``monitor.readings``) or the readings repeat one reading for 2 s
+        (``hydromon.engine.frozen_watch``), ``uncalibrated`` when no ranges were made for the rig's
         constants, ``ok`` once converged with a grade placed, else ``converging`` (the live
         monitor's statuses: a converged rig whose grade cannot be placed, level -1, is still
         converging)."""
         a = self.assessment
-        return health_status(bool(a.implausible or self.x1_clamped or self.units), False, a.converged, a.level,
+        return health_status(bool(a.implausible or self.x1_clamped or self.units or self.frozen), False,
+                             a.converged, a.level,
                              self.uncalibrated is None)
 
     @property
@@ -70,7 +74,8 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events,
                       pipe.fleet.ranges if why is None else None, pipe.fleet.x1_clamped(0), options,
                       uncalibrated=None if why is None else f"{why}; {COMMISSION_HINT}",
-                      units=record_slip(recording.samples, recording.config, options, recording.restarts))
+                      units=record_slip(recording.samples, recording.config, options, recording.restarts),
+                      frozen=frozen_words(recording.samples, recording.config.sample_rate))
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

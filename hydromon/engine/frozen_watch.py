@@ -18,9 +18,30 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FROZEN_S", "FrozenWatch"]
+__all__ = ["FROZEN_S", "FrozenWatch", "frozen_words"]
 
 FROZEN_S = 2.0  # [s] every channel repeating its reading this long is a stalled acquisition
+
+
+def frozen_words(samples: np.ndarray, sample_rate: float) -> str | None:
+    """Why a whole record's readings are not to be trusted when its five channels (``samples``
+    (N, 5): ug, x1, x3, x4, x5, SI) repeat one reading for ``FROZEN_S`` seconds or more in a row
+    (what the live monitor flags), else None. ``sample_rate`` [Hz]."""
+    s = np.asarray(samples, dtype=float)
+    if len(s) < 2:
+        return None
+    same = np.all(s[1:] == s[:-1], axis=1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], same.astype(np.int8), [0]])))
+    starts, ends = edges[::2], edges[1::2]  # runs of repeats: samples starts+1 .. ends repeat the one before
+    if not len(starts):
+        return None
+    k = int(np.argmax(ends - starts))
+    run = int(ends[k] - starts[k])
+    if run < max(2, int(round(FROZEN_S * sample_rate))):
+        return None
+    return (f"ug, x1, x3, x4 and x5 repeat one reading for {run / sample_rate:g} s from sample {int(starts[k])}: a "
+            "stalled acquisition re-sending its last reading, or a record made up of one sample? The estimates "
+            "learn nothing from readings that do not change")
 
 
 class FrozenWatch:

@@ -48,6 +48,7 @@ def to_json(ev: Evaluation) -> dict:
         out["glitches_replaced"] = ev.glitches
     out["x1_outside_chambers"] = ev.x1_clamped
     out["units"] = ev.units  # why a reading cannot be in the config's units (None: it can)
+    out["frozen"] = ev.frozen  # why the readings are not to be trusted: they repeat one reading (None: they do not)
     out["implausible"] = list(a.implausible)  # impossible estimates: the grade is withheld
     rec = ev.recording
     out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected,
@@ -103,11 +104,17 @@ def render(ev: Evaluation, console=None) -> None:
     if any(not math.isfinite(a.std_errors[k]) for k in PARAM_NAMES):
         console.print(f"[dim]{SE_UNKNOWN}[/dim]")
     if not a.converged:
-        # the reason a person needs here is the record's length, not the valve's excitation
         need = (ev.options or IdentOptions()).min_rows
-        console.print(f"[yellow]not converged: the chamber and valve equations need {need} rows each before a "
-                      f"grade (about {need / r.config.sample_rate:g} s of samples after the filters' warm-up); "
-                      f"this record has {len(r.samples)} samples: give a longer one[/yellow]")
+        head = (f"not converged: the chamber and valve equations need {need} rows each before a grade (about "
+                f"{need / r.config.sample_rate:g} s of samples after the filters' warm-up); this record has "
+                f"{len(r.samples)} samples")
+        gaps = f" and {len(r.restarts)} gap(s), after each of which the filters warm up again" if r.restarts else ""
+        if len(r.samples) < 3 * need:  # most often the reason: too short a record
+            console.print(f"[yellow]{head}{gaps}: give a longer one[/yellow]")
+        else:  # long enough: the rows the equations take need motion, and stretches without gaps
+            console.print(f"[yellow]{head}{gaps}, which would be enough: what it lacks is motion (a command that "
+                          "moves the valve and the piston: a constant or zero one gives the equations no rows)"
+                          + (" or stretches without gaps" if gaps else "") + "[/yellow]")
     if r.config_changes:
         console.print(f"[yellow]the rig's config changed {r.config_changes} time(s): evaluated the samples after the "
                       f"last change (sample {r.skipped}, t = {r.t[0]:g} s) with its constants, as the live monitor "
@@ -130,6 +137,8 @@ def render(ev: Evaluation, console=None) -> None:
                       "x3, x4, x5 and ug, and the rig constants[/red]")
     if ev.units:
         console.print(f"[red]not to be trusted: {ev.units}[/red]", highlight=False)
+    if ev.frozen:
+        console.print(f"[red]not to be trusted: {ev.frozen}[/red]", highlight=False)
     if ev.x1_clamped:
         c = r.config
         lo, hi = -(1 - V_MIN) * c.V10 / c.A1, (1 - V_MIN) * c.V20 / c.A2

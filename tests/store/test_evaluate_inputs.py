@@ -307,3 +307,31 @@ def test_an_mcap_whose_config_rate_its_time_stamps_contradict_is_refused(run, tm
     jittered = _messages(run, times=run.t + np.random.default_rng(3).uniform(-2e-3, 2e-3, len(run.t)))
     rec = load_recording(_mcap(tmp_path / "jitter.mcap", jittered))  # jitter is counted, not refused
     assert rec.jitter > 0
+
+
+def test_not_converged_says_whether_the_record_is_too_short_or_lacks_motion(tmp_path, capsys):
+    noise = np.random.default_rng(1).normal(size=(2000, 5)) * [0.0, 5e-6, 5e3, 5e3, 5e-7]  # realistic sensors
+    still = np.tile([0.4, 0.01, 5e6, 4e6, 0.0], (2000, 1)) + noise  # a rig held still for 20 s: no motion
+    (tmp_path / "still.csv").write_text(csv_text(np.arange(2000) / 100.0, still))
+    main(["evaluate", str(tmp_path / "still.csv")])
+    out = _text(capsys.readouterr().out)
+    assert "this record has 2000 samples, which would be enough: what it lacks is motion" in out, out
+    (tmp_path / "short.csv").write_text(csv_text(np.arange(300) / 100.0, still[:300]))
+    main(["evaluate", str(tmp_path / "short.csv")])
+    assert "this record has 300 samples: give a longer one" in _text(capsys.readouterr().out)
+
+
+def test_a_record_whose_readings_repeat_one_reading_is_not_to_be_trusted(run, tmp_path, capsys):
+    frozen = np.tile([0.4, 0.01, 5e6, 4e6, 0.0], (2000, 1))  # one sample, 2000 times: it was graded health, ok
+    (tmp_path / "frozen.csv").write_text(csv_text(np.arange(2000) / 100.0, frozen))
+    assert main(["evaluate", str(tmp_path / "frozen.csv"), "--json"]) == 1
+    got = json.loads(capsys.readouterr().out)
+    assert got["status"] == "bad-input" and got["frozen"].startswith("ug, x1, x3, x4 and x5 repeat one reading "
+                                                                     "for 19.99 s from sample 0"), got
+    s = run.samples.copy()
+    s[200:400] = s[199]  # a 2 s stall in a real record
+    rec = load_recording((tmp_path / "stall.csv").write_text(csv_text(run.t, s)) and tmp_path / "stall.csv")
+    assert evaluate(rec).status == "bad-input"
+    s[200:399] = s[199]
+    (tmp_path / "short-stall.csv").write_text(csv_text(run.t, s[:399]))
+    assert evaluate(load_recording(tmp_path / "short-stall.csv")).frozen is None  # 1.99 s: not a stall yet
