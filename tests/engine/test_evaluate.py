@@ -15,7 +15,8 @@ from plant_sim.profiles import PaperVariable
 from plant_sim.simulate import simulate
 
 KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps", "implausible",
-        "x1_outside_chambers", "timestamp_jitter", "config_changes", "memory_s", "uncalibrated", "why", "units"}
+        "x1_outside_chambers", "timestamp_jitter", "config_changes", "memory_s", "uncalibrated", "why", "units",
+        "frozen"}
 
 
 @pytest.fixture(scope="module")
