@@ -27,7 +27,7 @@ def config_from_args(args):
 
     path = Path(args.config)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte order mark, as editors on Windows write, is no error
     except FileNotFoundError:
         raise ValueError(f"--config {path}: no such file") from None
     except (OSError, UnicodeError) as exc:

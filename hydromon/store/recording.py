@@ -109,6 +109,10 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
     path = Path(path)
     name = str(path)
     suffix = path.suffix.lower()
+    if path.is_dir():
+        raise ValueError(f"{name}: is a directory; give a recording (.csv or .mcap)")
+    if path.exists() and not path.is_file():
+        raise ValueError(f"{name}: not a regular file; give a recording (.csv or .mcap)")
     if suffix == ".csv":
         if rig is not None:
             raise ValueError("--rig selects a rig of an MCAP recording; a CSV holds one rig")

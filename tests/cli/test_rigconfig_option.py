@@ -46,6 +46,8 @@ def test_a_csv_is_evaluated_with_the_constants_given(other_rig, tmp_path, capsys
     assert (right["grade"], right["status"]) == ("unknown", "uncalibrated")
     assert (wrong["grade"], wrong["status"]) != ("unknown", "uncalibrated")  # taken for the reference rig
     assert "p_s 1.4e+07" in right["uncalibrated"]
+    conf.write_bytes(b"\xef\xbb\xbf" + cfg.model_dump_json().encode())  # a byte order mark, as Windows editors write
+    assert _grade([str(csv), "--config", str(conf)], capsys)[0] == right
 
 
 @pytest.mark.parametrize("text, match", [

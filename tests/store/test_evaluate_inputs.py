@@ -213,8 +213,12 @@ def test_missing_and_binary_csv_errors_name_the_file(tmp_path, capsys):
         load_recording(binary)
     folder = tmp_path / "folder.csv"
     folder.mkdir()
-    with pytest.raises(ValueError, match=rf"^{folder}: cannot be read \(Is a directory\)"):
+    with pytest.raises(ValueError, match=rf"^{folder}: is a directory; give a recording"):
         load_recording(folder)
+    with pytest.raises(ValueError, match=rf"^{tmp_path}: is a directory; give a recording"):
+        load_recording(tmp_path)  # no suffix: said so, not "unknown file type ''"
+    with pytest.raises(ValueError, match=r"^/dev/null: not a regular file"):
+        load_recording("/dev/null")
 
 
 def test_mcap_errors_name_the_file_once(run, tmp_path):
