@@ -8,7 +8,8 @@ import sys
 
 NAME = "recover"
 HELP = ("rewrite a truncated or damaged MCAP recording into a valid one with every surviving message "
-        "(exit 1 when damaged chunks or messages without a channel had to be left out)")
+        "(exit 1 when damaged chunks before its end or messages without a channel had to be left out; "
+        "a file cut short, its last chunk unfinished, exits 0 and says where it was cut)")
 EXAMPLES = (
     'hydromon recover cut-off.mcap -o whole.mcap',
 )
