@@ -177,7 +177,10 @@ class Fleet:
         prev = self.latest.get(rig)
         if prev is None:
             out.resnap.add(rig)  # a rig page opened before it: its graded parameters and ranges come now
-        if prev is None or prev["grade"] != h["grade"]:
+            # since when: the event log's (kept across a restart of the dashboard) if its newest
+            # grade change of the rig led to this grade, else from now
+            self.since[rig] = self._grade_since(rig, h["grade"], wall)
+        elif prev["grade"] != h["grade"]:
             self.since[rig] = wall
         if prev is None or prev["ranges"] != h["ranges"] or prev["node"] != h["node"]:
             out.ranges_wanted.append(rig)
@@ -186,6 +189,14 @@ class Fleet:
         if hist is None:
             hist = self.history[rig] = RigHistory(*self.history_shape) if self.history_shape else RigHistory()
         hist.take(wall, h)
+
+    def _grade_since(self, rig: str, grade: str, wall: float) -> float:
+        """When the rig took ``grade`` by the event log's newest grade change of it [s since the
+        epoch], or ``wall`` when the log says nothing of it or of another grade since."""
+        for e in self.events.recent(rig=rig):
+            if e.get("kind") == "grade":
+                return float(e["wall"]) if e.get("to") == grade and e["wall"] <= wall else wall
+        return wall
 
     def _take_event(self, rig: str, payload: bytes, wall: float, out: Tick) -> None:
         try:

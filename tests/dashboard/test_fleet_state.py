@@ -165,3 +165,16 @@ def test_an_acknowledgement_needs_a_name_in_text_and_is_never_replaced():
     with pytest.raises(AlreadyAcknowledged, match="already acknowledged by anna at 1970-01-01 00:00:03 UTC"):
         log.ack(ev["id"], "mine now", "bob", 4.0)
     assert log.recent()[0]["ack"] == {"wall": 3.0, "comment": "valve replaced", "by": "anna"}
+
+
+def test_since_is_taken_from_the_event_log_across_a_restart(tmp_path):
+    path = tmp_path / "events.jsonl"
+    log = EventLog(path)
+    log.add({"wall": 10.0, "rig": "r1", "kind": "grade", "from": "average", "to": "fault", "reason": "x"})
+    log.add({"wall": 12.0, "rig": "r2", "kind": "grade", "from": "fault", "to": "average", "reason": "y"})
+    log.close()
+    fleet = Fleet(EventLog(path))  # the dashboard started again on its log
+    fleet.put_health("r1", health(grade="fault", level=4), 30.0)
+    fleet.put_health("r2", health(grade="health", level=0), 30.0)  # its newest change led elsewhere
+    rows = {r["rig"]: r for r in fleet.tick(30.5).rows}
+    assert rows["r1"]["since"] == 10.0 and rows["r2"]["since"] == 30.0
