@@ -36,7 +36,7 @@ function duration(s) {
 function clock(wall) {
   if (wall === null || wall === undefined) return "-";
   const d = new Date(wall * 1000);
-  return d.toLocaleString(undefined, {hour12: false});
+  return d.toLocaleString(undefined, {hour12: false, timeZoneName: "short"});  // whose clock: say so
 }
 
 // a rig pattern: '*' matches any run of characters; without '*' a substring
