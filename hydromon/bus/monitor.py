@@ -234,9 +234,20 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                           timeout=config_query_s)
     replies_until = clock() + config_query_s + 1.0
 
+    def take(batch: list) -> None:
+        out = core.process(batch)
+        keys.sync(core)
+        if live is not None and len(core.rigs) > live.seen:
+            live.check(core)  # a new rig's first verdict already says commissioning
+        if publishing():
+            publish(out)
+            publish_events()
+        else:
+            core.take_events()  # a standby's: its grade changes are announced by the publishing node
+
     def drain() -> int:
         nonlocal replies
-        batch = []
+        batch, n = [], 0
         if replies is not None:
             try:
                 while (r := replies.try_recv()) is not None:
@@ -246,29 +257,23 @@ def run_monitor(session: zenoh.Session, *, namespace: str = DEFAULT_NAMESPACE, n
                 replies = None
             if clock() > replies_until:
                 replies = None
-        # configs first: a config queued with samples applies to them; a payload too large to be
-        # one of ours is counted unread (copying megabytes of garbage would hold up every rig)
-        big = []
+        # configs first: a config queued with samples applies to them
         for sub in (sub_c, sub_s, sub_f):  # frames last: many samples each
-            while len(batch) < max_batch and (m := sub.try_recv()) is not None:
+            while n + len(batch) < max_batch and (m := sub.try_recv()) is not None:
                 p = m.payload
                 if len(p) > PAYLOAD_MAX:
-                    big.append((str(m.key_expr), len(p)))
+                    # too large to be one of ours: counted unread (copying megabytes of garbage would
+                    # hold up every rig), in its place among the messages before and after it
+                    if batch:
+                        take(batch)
+                        n, batch = n + len(batch), []
+                    core.refuse_unread(str(m.key_expr), len(p))
+                    n += 1
                 else:
                     batch.append((str(m.key_expr), p.to_bytes()))
-        for key, size in big:
-            core.refuse_unread(key, size)
         if batch:
-            out = core.process(batch)
-            keys.sync(core)
-            if live is not None and len(core.rigs) > live.seen:
-                live.check(core)  # a new rig's first verdict already says commissioning
-            if publishing():
-                publish(out)
-                publish_events()
-            else:
-                core.take_events()  # a standby's: its grade changes are announced by the publishing node
-        return len(batch)
+            take(batch)
+        return n + len(batch)
 
     def tell(line: str | None) -> None:
         if line is not None:

@@ -33,7 +33,8 @@ def _messages(rig: str, n: int) -> list[tuple[str, bytes]]:
 
 @pytest.mark.network
 @pytest.mark.timeout(120)
-def test_payloads_beyond_the_limit_are_counted_unread_and_flag_their_rig():
+@pytest.mark.parametrize("poll_s", [0.005, 3.0])  # batches as they come, or everything in one batch
+def test_payloads_beyond_the_limit_are_counted_unread_and_flag_their_rig(poll_s):
     n = 400
     good = _messages("r1", n)
     big = sample_with()[:-1] + b" " * PAYLOAD_MAX + b"}"  # valid JSON, padded past the limit
@@ -42,7 +43,8 @@ def test_payloads_beyond_the_limit_are_counted_unread_and_flag_their_rig():
         sub = pub_s.declare_subscriber("hydro/rig/*/health", zenoh.handlers.FifoChannel(10000))
         stop, result = threading.Event(), {}
         mon = threading.Thread(target=lambda: result.update(core=run_monitor(mon_s, stop_event=stop, node_name="m1",
-                                                                             stale_after_s=None)), daemon=True)
+                                                                             stale_after_s=None, poll_s=poll_s)),
+                               daemon=True)
         mon.start()
         got = []
         try:
