@@ -317,7 +317,20 @@ def stored_configs(src, rig: str) -> list[RigConfig]:
             found = [m.metadata for m in make_reader(f).iter_metadata() if m.name == f"rig_config/{rig}"]
         except DECODE_ERRORS as exc:
             raise damaged(name, exc, "a metadata record") from exc
-    return [RigConfig.model_validate({k: json.loads(v) for k, v in m.items()}) for m in found]
+    out = []
+    for i, m in enumerate(found):
+        try:
+            out.append(RigConfig.model_validate({k: json.loads(v) for k, v in m.items()}))
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"the rig config stored as metadata rig_config/{rig} (record {i}) is not JSON: "
+                             f"{exc}") from None
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            field = ".".join(map(str, err.get("loc", ()))) or "payload"
+            raise ValueError(f"the rig config stored as metadata rig_config/{rig} (record {i}) is not a valid rig "
+                             f"config ({field}: {err.get('msg')}); give the rig's constants with --config FILE"
+                             ) from None
+    return out
 
 
 def read_rig_config(src, rig: str) -> RigConfig:

@@ -339,3 +339,16 @@ def test_a_record_whose_readings_repeat_one_reading_is_not_to_be_trusted(run, tm
     s[200:399] = s[199]
     (tmp_path / "short-stall.csv").write_text(csv_text(run.t, s[:399]))
     assert evaluate(load_recording(tmp_path / "short-stall.csv")).frozen is None  # 1.99 s: not a stall yet
+
+
+@pytest.mark.parametrize("value, said", [('"16MPa"', r"is not a valid rig config \(p_s: "), ("{nope", "is not JSON")])
+def test_invalid_rig_config_metadata_is_a_clear_error_naming_it(run, tmp_path, value, said):
+    from hydromon.store.mcap_write import RecordingWriter
+
+    path = tmp_path / "meta.mcap"
+    with open(path, "wb") as f, RecordingWriter(f) as w:
+        w._writer.add_metadata("rig_config/g4", {"p_s": value})  # as another tool might have written it
+        for key, payload, log_ns in _messages(run):
+            w.write(key, payload, log_ns, log_ns)
+    with pytest.raises(ValueError, match=rf"the rig config stored as metadata rig_config/g4 \(record 0\) {said}"):
+        load_recording(path)
