@@ -69,3 +69,13 @@ def test_commission_never_writes_over_its_recording_even_with_force(records, cap
     before = paths["health"].read_bytes()
     assert main(["commission", str(paths["health"]), "--out", str(paths["health"]), "--force", "--runs", "0"]) == 2
     assert "is one of this command's inputs" in capsys.readouterr().err and paths["health"].read_bytes() == before
+
+
+def test_commission_says_how_many_gaps_its_record_holds(tmp_path, capsys):
+    run = simulate(parse_profile("paper-var"), 30.0, params=degrade(0.05), noise=noise_model("realistic"), seed=8)
+    keep = list(range(0, 1200)) + list(range(1600, 3000))  # 4 s lost mid-record
+    path = tmp_path / "gap.csv"
+    path.write_text(csv_text(run.t[keep], run.samples[keep]))
+    main(["commission", str(path), "--out", str(tmp_path / "r.json"), "--runs", "0"])
+    err = " ".join(capsys.readouterr().err.split())
+    assert "rig csv, 26.0 s; 1 gap(s), 400 sample(s) missing;" in err, err

@@ -67,6 +67,8 @@ def run(args) -> int:
     recorded = config is not None or suffix != ".mcap" or has_recorded_config(args.file, rec.rig)
     seconds = len(rec.samples) / rec.config.sample_rate
     drive = f"; valve drive u in {rec.drive_samples} samples" if rec.drive_samples else ""
+    if rec.restarts:  # the seconds are of samples: say what the record's span also holds
+        drive += f"; {len(rec.restarts)} gap(s), {rec.missing} sample(s) missing"
     print(f"hydromon commission: {rec.source}: rig {rec.rig}, {seconds:.1f} s{drive}; "
           f"{constants_line(rec.config, config is not None, suffix, recorded)}", file=sys.stderr, flush=True)
     made_on = f"{rec.source} rig {rec.rig}: {seconds:.1f} s, {len(rec.samples)} samples" + drive
