@@ -216,20 +216,20 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch, Fr
         """The last seq taken of each rig, by row (-1: none yet); a copy."""
         return self._last[:len(self.fleet.ids)].copy()
 
-    def stale(self, rig_ids: Iterable[str]) -> list[tuple[str, bytes]]:
+    def stale(self, rig_ids: Iterable[str], refused: Iterable[str] = ()) -> list[tuple[str, bytes]]:
         """The latest health of each of these rigs (silent ones: no sample taken for a while),
         re-sent with status ``stale`` (its grade and numbers are those of its last samples), or
-        ``bad-input`` when messages of the rig were rejected since its last health (it is not
-        silent: what it sends is refused); a rig with no health yet, or whose latest says so
-        already, gets none. ``latest`` says it from then on, until the rig's next health."""
-        out = []
+        ``bad-input`` for the rigs of ``refused``, whose messages keep coming but are rejected
+        (not silent: what they send is refused); a rig with no health yet, or whose latest says
+        so already, gets none. ``latest`` says it from then on, until the rig's next health."""
+        out, refused = [], set(refused)
         for rig_id in rig_ids:
             payload = self.latest.get(rig_id)
             if payload is None:
                 continue
             h = orjson.loads(payload)
             row = self.rigs[rig_id].row
-            status = "bad-input" if self._bad[row] else "stale"
+            status = "bad-input" if rig_id in refused else "stale"
             if h["status"] == status:
                 continue
             h["status"] = status
@@ -244,6 +244,7 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch, Fr
         self.counters.rejected[reason] += 1
         if rig is not None:
             self._bad[rig.row] = True
+            self._refused_n[rig.row] += 1
         if self.on_reject is not None:
             self.on_reject(reason, key, detail)
 

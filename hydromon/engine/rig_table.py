@@ -38,6 +38,7 @@ ROW_STATE = (
     ("_units", 0, np.int64),           # samples beyond its config's bounds since its latest evaluation
     ("_units_windows", 0, np.int64),   # evaluations that found a few beyond, since the estimates (re)started
     ("_units_warned", False, np.bool_),  # warned of them (hydromon.engine.units_watch)
+    ("_refused_n", 0, np.int64),       # its messages rejected, ever (the silence watch compares)
     ("_same", 0, np.int64),            # samples in a row repeating the one before (hydromon.engine.frozen_watch)
     ("_frozen_warned", False, np.bool_),  # warned of this freeze
 )

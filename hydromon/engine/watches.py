@@ -90,6 +90,12 @@ class RigWarningLog:
                 self.logger.warning("rig %s: %d more warnings '%s...' since the last report", key[0], n, key[1])
 
 
+REFUSED_STREAM = 10
+"""Rejected messages of a rig during its silence from which it is re-sent ``bad-input``, not
+``stale``: its messages keep coming (a rig at 100 Hz sends 200 in 2 s), while a link that died
+mid-message leaves one cut-off message."""
+
+
 class SilenceWatch:
     """Rigs that have sent no sample for a while, by the node's clock ``now`` [s].
 
@@ -115,6 +121,7 @@ class SilenceWatch:
         self._seqs = np.empty(0, dtype=np.int64)
         self._since = np.empty(0)
         self._told = np.empty(0, dtype=np.bool_)
+        self._refused = np.empty(0, dtype=np.int64)  # each row's rejected messages when it last took a sample
 
     def _observe(self, core: MonitorCore, now: float) -> None:
         seqs = core.last_seqs()
@@ -123,8 +130,10 @@ class SilenceWatch:
             self._seqs = np.concatenate([self._seqs, np.full(new, -2, dtype=np.int64)])
             self._since = np.concatenate([self._since, np.full(new, now)])
             self._told = np.concatenate([self._told, np.zeros(new, dtype=np.bool_)])
+            self._refused = np.concatenate([self._refused, np.zeros(new, dtype=np.int64)])
         moved = seqs != self._seqs  # a forgotten rig's row (seq back to -1) counts as moved
         self._since[moved], self._told[moved], self._seqs = now, False, seqs
+        self._refused[moved] = core._refused_n[:len(seqs)][moved]
 
     def check(self, core: MonitorCore, now: float) -> list[tuple[str, bytes]]:
         self._observe(core, now)
@@ -135,7 +144,10 @@ class SilenceWatch:
             return []
         self._told |= due
         ids = core.fleet.ids
-        return core.stale([ids[r] for r in np.flatnonzero(due).tolist()])
+        rows = np.flatnonzero(due)
+        # messages that keep coming, all rejected: not silent (a stray cut-off message is no stream)
+        refused = rows[core._refused_n[rows] - self._refused[rows] >= REFUSED_STREAM]
+        return core.stale([ids[r] for r in rows.tolist()], [ids[r] for r in refused.tolist()])
 
     def forget_due(self, core: MonitorCore, now: float) -> list[str]:
         self._observe(core, now)

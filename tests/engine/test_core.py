@@ -261,6 +261,13 @@ def test_a_rig_whose_every_sample_is_refused_says_bad_input_not_stale():
     events = [orjson.loads(p) for k, p in core.take_events() if f"/{rig}/" in k]
     assert [(e["kind"], e["to"]) for e in events] == [("status", "bad-input")], events
     assert watch.check(core, 10.0) == []
+    # a link that dies mid-message leaves one cut-off message, then silence: that rig is stale
+    core, watch = MonitorCore(NS), SilenceWatch(2.0)
+    core.process(CLEAN[:5 + 5 * 400])
+    watch.check(core, 0.0)
+    core.process([(health_key(rig).replace("/health", "/sample"), b'{"seq": 400, "t": 4.0, "ug": 0.1')])
+    resent = dict(watch.check(core, 2.1))
+    assert {orjson.loads(p)["status"] for p in resent.values()} == {"stale"} and len(resent) == 5
 
 
 def test_a_changed_config_restarts_the_rig_and_equal_configs_do_nothing():
