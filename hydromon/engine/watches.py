@@ -10,6 +10,7 @@ input. No I/O but logging, no clock of their own: the node (``hydromon.bus.monit
 from __future__ import annotations
 
 import logging
+import re
 import time
 
 import numpy as np
@@ -56,6 +57,9 @@ class RateLimitedLog:
                 self.logger.warning("rejected %s: %d more since the last report", reason, n)
 
 
+_NUMBER = re.compile(r"[-+]?[0-9][0-9.eE+-]*")
+
+
 class RigWarningLog:
     """``__call__(rig_id, message)`` (``MonitorCore(on_warning=...)``) logs a rig's warning of
     each kind (the message up to its first ':' or '(') at once, then at most one line per rig
@@ -69,7 +73,8 @@ class RigWarningLog:
         self._suppressed: dict[tuple[str, str], int] = {}
 
     def __call__(self, rig_id: str, message: str) -> None:
-        key = (rig_id, message.split(":", 1)[0].split("(", 1)[0].strip()[:60])
+        # numbers (a seq, a reading) differ from one warning of a kind to the next: not the kind
+        key = (rig_id, _NUMBER.sub("#", message.split(":", 1)[0].split("(", 1)[0]).strip()[:60])
         now = self.clock()
         last = self._last.get(key)
         if last is not None and now - last < self.interval:
@@ -81,13 +86,16 @@ class RigWarningLog:
         self.logger.warning("rig %s: %s%s", rig_id, message, more)
 
     def flush(self, final: bool = False) -> None:
-        """Log each suppressed count whose interval has passed (every one if ``final``)."""
+        """Log each suppressed count whose interval has passed (every one if ``final``), and
+        forget the kinds quiet for longer than that (rig ids come and go)."""
         now = self.clock()
         for key in list(self._suppressed):
             if final or now - self._last[key] >= self.interval:
                 n = self._suppressed.pop(key)
                 self._last[key] = now
                 self.logger.warning("rig %s: %d more warnings '%s...' since the last report", key[0], n, key[1])
+        for key in [k for k, last in self._last.items() if now - last >= self.interval and k not in self._suppressed]:
+            del self._last[key]
 
 
 REFUSED_STREAM = 10

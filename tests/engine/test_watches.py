@@ -62,3 +62,22 @@ def test_rig_warnings_are_rate_limited_per_rig_and_kind(caplog):
     assert lines[-2:] == ["rig flip: 19 more warnings 'config changed...' since the last report",
                           "rig flip: 19 more warnings 'not graded...' since the last report"]
     assert len(lines) == 9  # 240 warnings of one rig in 12 s: three lines a kind
+
+
+def test_rig_warnings_of_one_kind_that_carry_numbers_are_one_kind_and_quiet_kinds_are_forgotten(caplog):
+    from hydromon.engine.watches import RigWarningLog
+
+    now = [0.0]
+    wl = RigWarningLog(interval=5.0, clock=lambda: now[0])
+    with caplog.at_level("WARNING", logger="hydromon.bus.monitor"):
+        for i in range(200):
+            now[0] = i * 0.01
+            wl("r", f"seq went back from {1000 + i} to {i}: two publishers under one rig id?")
+    assert len(caplog.records) == 1
+    now[0] = 20.0
+    wl.flush()
+    said = caplog.records[-1].getMessage()
+    assert said == "rig r: 199 more warnings 'seq went back from # to #...' since the last report", said
+    now[0] = 30.0
+    wl.flush()
+    assert wl._last == {} and wl._suppressed == {}
