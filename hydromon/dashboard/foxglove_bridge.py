@@ -202,9 +202,11 @@ class FoxgloveBridge:
         except ValidationError:
             return  # not a contract payload: the dashboard counts it; Foxglove is not shown it
         # as on the dashboard's pages: not a verdict of an older start of the rig's monitor, nor of
-        # a node that is not up or not the rig's (``engine.board.Board.claim``)
-        if not self.fleet.board.claim(rig, valid.node, valid.epoch):
-            return
+        # a node that is not up or not the rig's (``engine.board.Board.shown``); the pages' own
+        # handling of it (under the fleet's lock) decides whose verdicts the rig's are
+        with self.fleet.lock:
+            if not self.fleet.board.shown(rig, valid.node, valid.epoch):
+                return
         h = orjson.loads(payload)
         h["bands"] = bands(h, self.fleet.ranges_for(rig))
         ch.log(orjson.dumps(h), log_time=time.time_ns())

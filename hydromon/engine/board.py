@@ -94,14 +94,19 @@ class Board:
         it becomes the rig's. Not one from an older start of the rig's monitor (late, not current),
         nor (while following the monitors) one from no live monitor or from another node than the
         rig's current live monitor."""
-        cur = self.owner.get(rig)
-        if node is not None and cur is not None and cur[0] == node and (epoch or 0) < (cur[1] or 0):
-            return False
-        if node is not None and self.following and (not self.monitors.get(node, False) or cur is not None and
-                                                    cur[0] != node and self.monitors.get(cur[0], False)):
+        if not self.shown(rig, node, epoch):
             return False
         self.owner[rig] = (node, epoch)
         return True
+
+    def shown(self, rig: str, node: str | None, epoch: int | None) -> bool:
+        """Whether :meth:`claim` would show that verdict, without making it the rig's (for a
+        second view of the same bus that must agree with the first)."""
+        cur = self.owner.get(rig)
+        if node is not None and cur is not None and cur[0] == node and (epoch or 0) < (cur[1] or 0):
+            return False
+        return not (node is not None and self.following and (not self.monitors.get(node, False) or cur is not None
+                                                             and cur[0] != node and self.monitors.get(cur[0], False)))
 
     def monitor_gone(self, rig: str) -> bool:
         """True once the monitor that gave the rig's verdict shown has left the bus."""

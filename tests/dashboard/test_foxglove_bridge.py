@@ -148,6 +148,7 @@ def _as_the_foxglove_app(client, bridge, pub_session) -> None:
     client.subscribe(2, "hydro/rig/table4-g3/event")
     client.subscribe(3, "hydro/rig/table4-g1/sample")
     client.subscribe(4, "hydro/fleet")
+    client.subscribe(5, "hydro/rig/table4-g3/config")
     wait_for(lambda: set(bridge.sample_subs) == {"table4-g1"}, 5, "the sample subscription on the bus")
     time.sleep(0.3)
     ev = Event.model_validate({"seq": 5, "t": 0.05, "kind": "grade", "from": "deterioration", "to": "fault",
@@ -163,6 +164,8 @@ def _as_the_foxglove_app(client, bridge, pub_session) -> None:
         return all(len(client.messages.get(i, [])) >= n for i, n in ((1, 3), (2, 1), (3, 20), (4, 2)))
 
     wait_for(got_all, 15, "messages on every subscription")
+    client.pump(0.5)  # what came after the forged payloads: none of them among it
+    assert client.messages.get(5, []) == []  # the config channel's only message was the forged one
     for sub_id, topic in ((1, "hydro/rig/table4-g3/health"), (2, "hydro/rig/table4-g3/event"),
                           (3, "hydro/rig/table4-g1/sample"), (4, "hydro/fleet")):
         schema = json.loads(client.channels[topic]["schema"])
