@@ -9,8 +9,8 @@ from one sample to the next (steps, sines, multisines at every health band), so 
 every channel for 2 s is a stall, not a rig at rest.
 
 A mixin of :class:`hydromon.engine.core.MonitorCore`: ``_same`` (samples in a row equal to the one
-before, every channel) and ``_frozen_warned`` are rows of its ``ROW_STATE``; ``_prev`` holds each
-row's last sample. Not saved in a checkpoint: a restored rig that is still frozen says so again
+before, every channel), ``_watched`` (samples seen) and ``_frozen_from`` (where the freeze last
+warned of began) are rows of its ``ROW_STATE``; ``_prev`` holds each row's last sample. Not saved in a checkpoint: a restored rig that is still frozen says so again
 after ``FROZEN_S`` seconds of its samples.
 """
 
@@ -74,21 +74,25 @@ class FrozenWatch:
         run = pos - start + same[start] + carry
         last = np.ones(len(r_s), dtype=np.bool_)
         last[:-1] = r_s[1:] != r_s[:-1]
+        # each sample's place among its row's samples ever seen, so a freeze is known by where it began
+        index = self._watched[r_s] + pos - np.maximum.accumulate(np.where(first, pos, 0))
+        self._watched[r_s[last]] = index[last] + 1
         self._same[r_s[last]] = run[last]
         self._prev[r_s[last]] = v_s[last]
         need = self._frozen_samples()
         if not len(ev) or run.max(initial=0) < need:
-            self._frozen_warned[r_s[last][run[last] < need]] = False
             return
         at = np.empty(len(r_s), dtype=np.int64)
         at[order] = np.arange(len(r_s))  # batch index -> sorted position
-        frozen = run[at[ev.sample]] >= need
-        for i, r in zip(ev.sample[frozen].tolist(), ev.rig[frozen].tolist()):
+        p_ev = at[ev.sample]
+        frozen = run[p_ev] >= need
+        began = (index - run)[p_ev]
+        for i, r, b in zip(ev.sample[frozen].tolist(), ev.rig[frozen].tolist(), began[frozen].tolist()):
             self._b_status[i] = "bad-input"
-            if self.on_warning is not None and not self._frozen_warned[r]:
-                self._frozen_warned[r] = True
-                self.on_warning(self.fleet.ids[r], f"ug, x1, x3, x4 and x5 have repeated one reading for "
-                                                   f"{need / self.fleet.sample_rate:g} s: a stalled acquisition "
-                                                   "re-sending its last reading? Its health says bad-input "
-                                                   "until they change")
-        self._frozen_warned[r_s[last][run[last] < need]] = False
+            if self._frozen_from[r] != b:  # a freeze not warned of yet
+                self._frozen_from[r] = b
+                if self.on_warning is not None:
+                    self.on_warning(self.fleet.ids[r], f"ug, x1, x3, x4 and x5 have repeated one reading for "
+                                                       f"{need / self.fleet.sample_rate:g} s: a stalled acquisition "
+                                                       "re-sending its last reading? Its health says bad-input "
+                                                       "until they change")

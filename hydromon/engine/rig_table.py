@@ -40,7 +40,8 @@ ROW_STATE = (
     ("_units_warned", False, np.bool_),  # warned of them (hydromon.engine.units_watch)
     ("_refused_n", 0, np.int64),       # its messages rejected, ever (the silence watch compares)
     ("_same", 0, np.int64),            # samples in a row repeating the one before (hydromon.engine.frozen_watch)
-    ("_frozen_warned", False, np.bool_),  # warned of this freeze
+    ("_watched", 0, np.int64),         # samples the frozen watch has seen
+    ("_frozen_from", -1, np.int64),    # where the freeze last warned of began, in those samples (-1: none)
 )
 
 

@@ -82,10 +82,28 @@ def test_a_forgotten_rig_s_row_carries_no_reading_into_the_next_rig(run):
     core = MonitorCore(NS)
     s = run.samples
     core.process(_messages(run, s[:300], rig="old"))
+    row = core.rigs["old"].row
     core.forget(["old"])
-    # the next rig in its row starts with the old rig's last reading, repeated: a freeze of its own only
+    # the next rig in its row starts with the old rig's last reading, repeated: its first sample
+    # repeats nothing (the old rig's is not its own), the next 49 repeat it
     frozen = s.copy()
-    frozen[:400] = s[299]
-    out = core.process(_messages(run, frozen[:450], rig="new"))
-    bad = [orjson.loads(p)["seq"] for k, p in out if orjson.loads(p)["status"] == "bad-input"]
-    assert bad and min(bad) >= int(FROZEN_S * 100), bad
+    frozen[:50] = s[299]
+    core.process(_messages(run, frozen[:50], rig="new"))
+    assert core.rigs["new"].row == row and core._same[row] == 49
+
+
+def test_each_freeze_is_warned_of_in_one_batch_as_in_many(run):
+    s = _frozen(run, [(300, 600), (700, 1000)])
+    msgs = _messages(run, s)
+    for batch in (None, 100):
+        _, warnings = _run(msgs, batch)
+        assert sum("repeated one reading" in w[1] for w in warnings) == 2, (batch, warnings)
+
+
+def test_interleaved_rigs_are_watched_each_on_its_own(run):
+    a, b = _messages(run, _frozen(run, [(300, 700)]), rig="a"), _messages(run, run.samples, rig="b")
+    mixed = [m for pair in zip(a, b) for m in pair]
+    health, warnings = _run(mixed, batch=37)
+    bad = {(h["seq"], r) for (h, r) in [(orjson.loads(p), k.split("/")[2]) for k, p in
+                                        MonitorCore(NS).process(mixed)] if h["status"] == "bad-input"}
+    assert bad and {r for _, r in bad} == {"a"} and [w[0] for w in warnings if "repeated" in w[1]] == ["a"]
