@@ -2,16 +2,17 @@
 reading for ``FROZEN_S`` seconds says ``bad-input`` and is warned of, once per freeze.
 
 An acquisition that stalls and keeps re-sending its last reading (its seq still counting) is not
-silent, so the silence watch never sees it, and its estimates, which learn nothing from a
-reading that does not change, kept saying ``ok`` with the grade they had. Real sensors flicker
-by at least their resolution, and a simulated rig without noise never repeats all five channels
-from one sample to the next (steps, sines, multisines at every health band), so a repeat of
-every channel for 2 s is a stall, not a rig at rest.
+silent, so the silence watch does not see it, and its estimates, which learn nothing from a
+reading that does not change, would go on saying ``ok`` with the grade they had. Real sensors
+flicker by at least their resolution, and a simulated rig without noise never repeats all five
+channels from one sample to the next (steps, sines, multisines at every health band), so a repeat
+of every channel for ``FROZEN_S`` is a stall, not a rig at rest.
 
 A mixin of :class:`hydromon.engine.core.MonitorCore`: ``_same`` (samples in a row equal to the one
 before, every channel), ``_watched`` (samples seen) and ``_frozen_from`` (where the freeze last
-warned of began) are rows of its ``ROW_STATE``; ``_prev`` holds each row's last sample. Not saved in a checkpoint: a restored rig that is still frozen says so again
-after ``FROZEN_S`` seconds of its samples.
+warned of began) are rows of its ``ROW_STATE``; ``_prev`` holds each row's last sample. Not saved
+in a checkpoint: a restored rig that is still frozen says so again after ``FROZEN_S`` seconds of
+its samples.
 """
 
 from __future__ import annotations
