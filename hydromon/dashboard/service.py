@@ -99,12 +99,12 @@ def open_recording(path, *, host: str = "127.0.0.1", port: int = 8050, fallback_
     fleet.history_shape = ((spacing, 1000), (max(spacing * 6, 6.0), 600))
     last, verdicts = start, 0
     for key, payload, log_ns, _pub in read_recording(path):
+        last = max(last, log_ns / 1e9)  # its end, from every message (a file without a summary has no other)
         parts = rig_key_parts(key, None)
         if isinstance(parts, str) or parts[2] not in ("health", "event"):
             continue
-        last = log_ns / 1e9
         verdicts += parts[2] == "health"
-        fleet.take_recorded(parts[1], parts[2], payload, last)
+        fleet.take_recorded(parts[1], parts[2], payload, log_ns / 1e9)
     # ages at the recording's end, not at its last verdict: a monitor that died before the
     # recorder did shows its rigs' verdicts as old as they were when the recording ended
     end = max(end, last)
