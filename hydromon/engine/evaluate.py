@@ -55,6 +55,17 @@ class Evaluation:
                              self.uncalibrated is None)
 
     @property
+    def bad_input_words(self) -> str | None:
+        """Why the status is ``bad-input``, in words (None: it is not)."""
+        a, why = self.assessment, []
+        if a.implausible:
+            why.append("physically impossible estimates (" + ", ".join(a.implausible) + ")")
+        if self.x1_clamped:
+            why.append(f"x1 beyond a chamber's end in {self.x1_clamped} samples")
+        why += [w for w in (self.units, self.frozen) if w]
+        return "; ".join(why) or None
+
+    @property
     def memory_s(self) -> float | None:
         """The estimators' memory [s] it was graded with (``--memory``); None: a growing window."""
         return (self.options or IdentOptions()).memory_s(self.recording.config.sample_rate)

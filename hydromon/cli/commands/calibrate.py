@@ -93,11 +93,10 @@ def run_labelled(args) -> int:
             raise ValueError(f"{e.path}: its rig constants differ from the first record's: one list, one rig")
         ev = evaluate(rec, ranges=baseline)
         a = ev.assessment
-        # a record whose input is bad (impossible estimates, readings in other units, x1 beyond a
-        # chamber) would put its wrong-unit estimates into the edges of every other rig's grade
-        bad = ev.status == "bad-input"
-        state = ("left out: its input is bad (" + (ev.units or ", ".join(a.implausible) or "status bad-input") + ")"
-                 if bad else "converged" if a.converged else "not converged: left out")
+        # a record whose input is bad would put its wrong estimates into the edges of every grade
+        bad = ev.bad_input_words
+        state = (f"left out: its input is bad ({bad})" if bad else
+                 "converged" if a.converged else "not converged: left out")
         print(f"hydromon calibrate: {i}/{len(entries)} {e.path} ({GRADES[e.grade]}): {state}", file=sys.stderr)
         if a.converged and not bad:
             rows.append([a.params[k] for k in PARAM_NAMES])
