@@ -26,7 +26,7 @@ import time
 
 import zenoh
 
-from hydromon.contract import failover_key
+from hydromon.contract import RIG_ID_RE, failover_key
 
 __all__ = ["Failover", "group_name"]
 
@@ -37,7 +37,7 @@ def group_name(rigs: str) -> str:
     return "all" if rigs == "*" else "rigs-" + hashlib.sha256(rigs.encode()).hexdigest()[:12]
 
 
-_CLAIM = re.compile(r"[0-9]{20}-([A-Za-z0-9_-]{1,64})")  # <claim time [ns], 20 digits>-<node>
+_CLAIM = re.compile(rf"[0-9]{{20}}-({RIG_ID_RE.pattern})")  # <claim time [ns], 20 digits>-<node>
 
 
 def _node_of(token: str) -> str:

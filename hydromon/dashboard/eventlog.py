@@ -112,6 +112,11 @@ class EventLog:
             self._write({"ack": event_id, **ev["ack"]})
             return ev
 
+    def last_of(self, rig: str, kind: str) -> dict | None:
+        """The newest held event of ``rig`` of ``kind`` (None: none), without copying the log."""
+        with self._lock:
+            return next((e for e in reversed(self.events) if e.get("rig") == rig and e.get("kind") == kind), None)
+
     def recent(self, n: int | None = None, rig: str | None = None) -> list[dict]:
         """The held events, newest first (only rig ``rig``'s when given)."""
         with self._lock:

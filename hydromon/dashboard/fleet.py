@@ -193,10 +193,8 @@ class Fleet:
     def _grade_since(self, rig: str, grade: str, wall: float) -> float:
         """When the rig took ``grade`` by the event log's newest grade change of it [s since the
         epoch], or ``wall`` when the log says nothing of it or of another grade since."""
-        for e in self.events.recent(rig=rig):
-            if e.get("kind") == "grade":
-                return float(e["wall"]) if e.get("to") == grade and e["wall"] <= wall else wall
-        return wall
+        e = self.events.last_of(rig, "grade")
+        return float(e["wall"]) if e is not None and e.get("to") == grade and e["wall"] <= wall else wall
 
     def _take_event(self, rig: str, payload: bytes, wall: float, out: Tick) -> None:
         try:

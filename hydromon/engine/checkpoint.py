@@ -44,7 +44,8 @@ its bounds counted, no warning given)."""
 # ``_holding`` is not: samples held back are not saved, they are part of the gap
 _ROW_FIELDS = ("_last", "_n", "_gap", "_bad", "_clamp_warned", "_back_n", "_back_seq", "_back_warned",
                "_units", "_units_windows", "_units_warned")
-_FIELDS_OF = {1: 8, FORMAT: len(_ROW_FIELDS)}  # the columns of ``rows`` in each format read
+_FORMAT_1_FIELDS = 8  # format 1 held the first eight: the sequence state
+_FIELDS_OF = {1: _FORMAT_1_FIELDS, FORMAT: len(_ROW_FIELDS)}  # the columns of ``rows`` in each format read
 
 
 class CheckpointRefused(ValueError):

@@ -82,7 +82,7 @@ def check_seq_rate(t: np.ndarray, seq: np.ndarray, sample_rate: float, where: st
     step [s] within TYPICAL_TOL of 1/sample_rate [Hz], else ValueError naming ``where``. Jitter is
     counted, not refused (:func:`time_jitter`), but a config at another rate than the rig's time
     stamps would put every rate in the estimates off by that factor (a 40 s record at 100 Hz under
-    a 50 Hz config was commissioned as 80 s, its damping twice the true)."""
+    a 50 Hz config reads as 80 s, its damping twice the true)."""
     steps = np.diff(seq)
     ok = steps > 0
     if not ok.any():

@@ -113,7 +113,7 @@ def test_a_format_1_checkpoint_without_the_units_watch_s_counts_is_read_as_fresh
     meta = orjson.loads(arrays["meta"].tobytes())
     meta["format"] = 1
     arrays["meta"] = np.frombuffer(orjson.dumps(meta), dtype=np.uint8)
-    arrays["rows"] = arrays["rows"][:, :8]  # format 1 kept the sequence state only
+    arrays["rows"] = arrays["rows"][:, :8]  # format 1 holds the sequence state only
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     old = decode(buf.getvalue())

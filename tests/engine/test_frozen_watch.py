@@ -1,6 +1,6 @@
 """The live monitor says ``bad-input`` for a rig whose readings stopped changing
 (``hydromon.engine.frozen_watch``): a stalled acquisition re-sending its last reading, its seq
-still counting, kept its ``ok`` and grade for as long as it stalled."""
+still counting, is not silent, and its estimates learn nothing from it."""
 
 from __future__ import annotations
 

@@ -326,7 +326,7 @@ def test_not_converged_says_whether_the_record_is_too_short_or_lacks_motion(tmp_
 
 
 def test_a_record_whose_readings_repeat_one_reading_is_not_to_be_trusted(run, tmp_path, capsys):
-    frozen = np.tile([0.4, 0.01, 5e6, 4e6, 0.0], (2000, 1))  # one sample, 2000 times: it was graded health, ok
+    frozen = np.tile([0.4, 0.01, 5e6, 4e6, 0.0], (2000, 1))  # one sample, 2000 times: it fits a still rig
     (tmp_path / "frozen.csv").write_text(csv_text(np.arange(2000) / 100.0, frozen))
     assert main(["evaluate", str(tmp_path / "frozen.csv"), "--json"]) == 1
     got = json.loads(capsys.readouterr().out)

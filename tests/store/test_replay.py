@@ -389,7 +389,7 @@ def test_a_replay_cut_short_exits_1_unless_looping():
 def test_a_bus_replay_skips_topics_that_are_not_zenoh_keys_and_says_so(recording, tmp_path, capsys, monkeypatch):
     import contextlib
 
-    # a ROS-style topic (a leading slash) cannot be a zenoh key: declaring it raised mid-replay
+    # a ROS-style topic (a leading slash) cannot be a zenoh key: zenoh refuses to declare it
     ros = _rewrite(recording, tmp_path / "ros.mcap", key=lambda k: "/" + k if k.endswith("/config") else k, n=600)
     session = _FakeSession(_FakeTime())
     monkeypatch.setattr("hydromon.cli.commands.replay.session_from_args", lambda args: contextlib.nullcontext(session))
