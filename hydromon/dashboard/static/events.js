@@ -2,7 +2,9 @@
 "use strict";
 
 const MAX_ROWS = 1000;
+const MAX_HELD = 5000;    // events the page keeps (the server's snapshot holds the newest 1000)
 let events = [];          // newest first
+let pointerOn = false, due = false;  // the table stands still under the pointer: rows must not move under a click
 const byId = new Map();
 let match = rigMatcher("");
 let openOnly = false;
@@ -31,6 +33,9 @@ function draw() {
   setText(document.getElementById("shown"), shown.length + " shown of " + events.length + "; " + open + " not acknowledged");
 }
 
+const table = document.getElementById("events");
+table.addEventListener("mouseenter", () => { pointerOn = true; });
+table.addEventListener("mouseleave", () => { pointerOn = false; if (due) { due = false; draw(); } });
 document.getElementById("filter").addEventListener("input", (e) => { match = rigMatcher(e.target.value); draw(); });
 document.getElementById("open-only").addEventListener("change", (e) => { openOnly = e.target.checked; draw(); });
 
@@ -41,11 +46,13 @@ connect({view: "events"}, (msg) => {
     for (const e of events) byId.set(e.id, e);
   } else if (msg.type === "events-delta") {
     for (const e of msg.events) { events.unshift(e); byId.set(e.id, e); }
+    for (const e of events.splice(MAX_HELD)) byId.delete(e.id);
   } else if (msg.type === "ack") {
     const old = byId.get(msg.event.id);
     if (old) old.ack = msg.event.ack;
   } else return;
   // an acknowledgement form being typed in is not redrawn away
   if (document.activeElement && document.activeElement.closest && document.activeElement.closest("form.ackform")) return;
+  if (pointerOn && msg.type !== "events") { due = true; return; }  // drawn when the pointer leaves
   draw();
 });
