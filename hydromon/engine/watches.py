@@ -22,6 +22,38 @@ __all__ = ["RateLimitedLog", "RigWarningLog", "SilenceWatch", "BacklogWatch"]
 log = logging.getLogger("hydromon.bus.monitor")  # the node's log: these lines are its
 
 
+class _Throttle:
+    """Per key: the first at once, then at most one every ``interval`` [s], with how many were
+    held back between (the shared rule of the node's two rate-limited logs)."""
+
+    def __init__(self, interval: float, clock):
+        self.interval, self.clock = float(interval), clock
+        self._last: dict = {}
+        self._suppressed: dict = {}
+
+    def admit(self, key) -> int | None:
+        """None: held back (counted); else say it now, with this many held back before it."""
+        now = self.clock()
+        last = self._last.get(key)
+        if last is not None and now - last < self.interval:
+            self._suppressed[key] = self._suppressed.get(key, 0) + 1
+            return None
+        self._last[key] = now
+        return self._suppressed.pop(key, 0)
+
+    def due(self, final: bool = False) -> list:
+        """``(key, count)`` of the held-back counts whose interval has passed (every one if
+        ``final``); keys quiet for longer than the interval are forgotten (rigs come and go)."""
+        now, out = self.clock(), []
+        for key in list(self._suppressed):
+            if final or now - self._last[key] >= self.interval:
+                out.append((key, self._suppressed.pop(key)))
+                self._last[key] = now
+        for key in [k for k, last in self._last.items() if now - last >= self.interval and k not in self._suppressed]:
+            del self._last[key]
+        return out
+
+
 class RateLimitedLog:
     """``__call__(reason, key, detail)`` logs the first rejection of each reason at once,
     then at most one line per reason every ``interval`` [s] with how many were suppressed.
@@ -32,29 +64,18 @@ class RateLimitedLog:
     """
 
     def __init__(self, logger: logging.Logger = log, interval: float = 5.0, clock=time.monotonic):
-        self.logger, self.interval, self.clock = logger, float(interval), clock
-        self._last: dict[str, float] = {}
-        self._suppressed: dict[str, int] = {}
+        self.logger, self._throttle = logger, _Throttle(interval, clock)
 
     def __call__(self, reason: str, key: str, detail: str) -> None:
-        now = self.clock()
-        last = self._last.get(reason)
-        if last is not None and now - last < self.interval:
-            self._suppressed[reason] = self._suppressed.get(reason, 0) + 1
-            return
-        n = self._suppressed.pop(reason, 0)
-        self._last[reason] = now
-        more = f" (+{n} more since the last report)" if n else ""
-        self.logger.warning("rejected %s on %s: %s%s", reason, key[:200], detail[:200], more)
+        n = self._throttle.admit(reason)
+        if n is not None:
+            more = f" (+{n} more since the last report)" if n else ""
+            self.logger.warning("rejected %s on %s: %s%s", reason, key[:200], detail[:200], more)
 
     def flush(self, final: bool = False) -> None:
         """Log each reason's suppressed count whose interval has passed (every one if ``final``)."""
-        now = self.clock()
-        for reason in list(self._suppressed):
-            if final or now - self._last[reason] >= self.interval:
-                n = self._suppressed.pop(reason)
-                self._last[reason] = now
-                self.logger.warning("rejected %s: %d more since the last report", reason, n)
+        for reason, n in self._throttle.due(final):
+            self.logger.warning("rejected %s: %d more since the last report", reason, n)
 
 
 _NUMBER = re.compile(r"[-+]?[0-9][0-9.eE+-]*")
@@ -62,40 +83,25 @@ _NUMBER = re.compile(r"[-+]?[0-9][0-9.eE+-]*")
 
 class RigWarningLog:
     """``__call__(rig_id, message)`` (``MonitorCore(on_warning=...)``) logs a rig's warning of
-    each kind (the message up to its first ':' or '(') at once, then at most one line per rig
-    and kind every ``interval`` [s] with how many were suppressed; ``flush`` as
-    :class:`RateLimitedLog`'s. Most warnings come once per rig and restart of its estimates,
-    but a rig whose config flips with every message would write two lines a message."""
+    each kind (the message up to its first ':' or '(', its numbers left out) at once, then at
+    most one line per rig and kind every ``interval`` [s] with how many were suppressed;
+    ``flush`` as :class:`RateLimitedLog`'s. Most warnings come once per rig and restart of its
+    estimates, but a rig whose config flips with every message would write two lines a message."""
 
     def __init__(self, logger: logging.Logger = log, interval: float = 5.0, clock=time.monotonic):
-        self.logger, self.interval, self.clock = logger, float(interval), clock
-        self._last: dict[tuple[str, str], float] = {}
-        self._suppressed: dict[tuple[str, str], int] = {}
+        self.logger, self._throttle = logger, _Throttle(interval, clock)
 
     def __call__(self, rig_id: str, message: str) -> None:
         # numbers (a seq, a reading) differ from one warning of a kind to the next: not the kind
-        key = (rig_id, _NUMBER.sub("#", message.split(":", 1)[0].split("(", 1)[0]).strip()[:60])
-        now = self.clock()
-        last = self._last.get(key)
-        if last is not None and now - last < self.interval:
-            self._suppressed[key] = self._suppressed.get(key, 0) + 1
-            return
-        n = self._suppressed.pop(key, 0)
-        self._last[key] = now
-        more = f" (+{n} more like it since the last report)" if n else ""
-        self.logger.warning("rig %s: %s%s", rig_id, message, more)
+        n = self._throttle.admit((rig_id, _NUMBER.sub("#", message.split(":", 1)[0].split("(", 1)[0]).strip()[:60]))
+        if n is not None:
+            more = f" (+{n} more like it since the last report)" if n else ""
+            self.logger.warning("rig %s: %s%s", rig_id, message, more)
 
     def flush(self, final: bool = False) -> None:
-        """Log each suppressed count whose interval has passed (every one if ``final``), and
-        forget the kinds quiet for longer than that (rig ids come and go)."""
-        now = self.clock()
-        for key in list(self._suppressed):
-            if final or now - self._last[key] >= self.interval:
-                n = self._suppressed.pop(key)
-                self._last[key] = now
-                self.logger.warning("rig %s: %d more warnings '%s...' since the last report", key[0], n, key[1])
-        for key in [k for k, last in self._last.items() if now - last >= self.interval and k not in self._suppressed]:
-            del self._last[key]
+        """Log each suppressed count whose interval has passed (every one if ``final``)."""
+        for (rig_id, kind), n in self._throttle.due(final):
+            self.logger.warning("rig %s: %d more warnings '%s...' since the last report", rig_id, n, kind)
 
 
 REFUSED_STREAM = 10

@@ -80,4 +80,4 @@ def test_rig_warnings_of_one_kind_that_carry_numbers_are_one_kind_and_quiet_kind
     assert said == "rig r: 199 more warnings 'seq went back from # to #...' since the last report", said
     now[0] = 30.0
     wl.flush()
-    assert wl._last == {} and wl._suppressed == {}
+    assert wl._throttle._last == {} and wl._throttle._suppressed == {}
