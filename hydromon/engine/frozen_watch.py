@@ -68,13 +68,19 @@ class FrozenWatch:
         before[1:] = v_s[:-1]
         before[first] = self._prev[r_s[first]]
         same = np.all(v_s == before, axis=1)
+        last = np.ones(len(r_s), dtype=np.bool_)
+        last[:-1] = r_s[1:] != r_s[:-1]
+        if not same.any():  # the common case: no sample repeats its row's last one
+            rl = r_s[last]
+            self._watched[rl] += np.flatnonzero(last) - np.flatnonzero(first) + 1
+            self._same[rl] = 0
+            self._prev[rl] = v_s[last]
+            return
         # run of repeats ending at each sample: the row's run carried into its first sample
         pos = np.arange(len(r_s))
         start = np.maximum.accumulate(np.where(~same | first, pos, 0))
         carry = np.where(same[start] & first[start], self._same[r_s[start]], 0)
         run = pos - start + same[start] + carry
-        last = np.ones(len(r_s), dtype=np.bool_)
-        last[:-1] = r_s[1:] != r_s[:-1]
         # each sample's place among its row's samples ever seen, so a freeze is known by where it began
         index = self._watched[r_s] + pos - np.maximum.accumulate(np.where(first, pos, 0))
         self._watched[r_s[last]] = index[last] + 1
