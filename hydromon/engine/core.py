@@ -252,12 +252,11 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch, Fr
         """Count a message of ``size`` bytes on ``key`` that was not read (more than
         ``PAYLOAD_MAX``): rejected as ``too-large``, its rig's next health says bad-input."""
         why = Rejected("too-large", too_large_words(size))
-        rig = self._known.get(key) or self._frame_rigs.get(key)
-        parts = split_rig_key(key, self.namespace) if rig is None else None
-        if rig is None and isinstance(parts, str):
+        parts = split_rig_key(key, self.namespace)
+        if isinstance(parts, str):
             self._reject(why.reason, key, why.detail)
         else:  # a rig not seen yet has its first health say bad-input
-            self._refused(parts[0] if rig is None else None, key, why, rig)
+            self._refused(parts[0], key, why)
 
     def _on_sample(self, rig_id: str, key: str, payload: bytes, out: list) -> None:
         try:

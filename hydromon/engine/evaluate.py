@@ -50,9 +50,7 @@ class Evaluation:
         monitor's statuses: a converged rig whose grade cannot be placed, level -1, is still
         converging)."""
         a = self.assessment
-        return health_status(bool(a.implausible or self.x1_clamped or self.units or self.frozen), False,
-                             a.converged, a.level,
-                             self.uncalibrated is None)
+        return health_status(self.bad_input_words is not None, False, a.converged, a.level, self.uncalibrated is None)
 
     @property
     def bad_input_words(self) -> str | None:

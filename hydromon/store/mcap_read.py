@@ -230,6 +230,12 @@ def sample_rigs(src) -> list[str]:
     return sorted(_rig_topics(src, "sample", None))
 
 
+def _first_error(exc: ValidationError) -> str:
+    """``field: what is wrong`` of a validation error's first complaint."""
+    err = exc.errors()[0]
+    return f"{'.'.join(map(str, err.get('loc', ()))) or 'payload'}: {err.get('msg')}"
+
+
 def read_samples(src, rig: str | None = None, rejected: list | None = None,
                  configs: list | None = None, drive: list | None = None,
                  bad_configs: list | None = None) -> tuple[str, np.ndarray, np.ndarray]:
@@ -277,10 +283,8 @@ def read_samples(src, rig: str | None = None, rejected: list | None = None,
                 configs.append((len(rows), RigConfig.model_validate_json(payload)))
             except ValidationError as exc:
                 if bad_configs is not None:
-                    err = exc.errors()[0]
-                    field = ".".join(map(str, err.get("loc", ()))) or "payload"
                     bad_configs.append(f"its config message on {key} at log time {log_ns} ns is not a valid rig "
-                                       f"config ({field}: {err.get('msg')})")
+                                       f"config ({_first_error(exc)})")
             continue
         try:
             s = (Sample if key == sample_topic else Frame).model_validate_json(payload)
@@ -325,11 +329,8 @@ def stored_configs(src, rig: str) -> list[RigConfig]:
             raise ValueError(f"the rig config stored as metadata rig_config/{rig} (record {i}) is not JSON: "
                              f"{exc}") from None
         except ValidationError as exc:
-            err = exc.errors()[0]
-            field = ".".join(map(str, err.get("loc", ()))) or "payload"
             raise ValueError(f"the rig config stored as metadata rig_config/{rig} (record {i}) is not a valid rig "
-                             f"config ({field}: {err.get('msg')}); give the rig's constants with --config FILE"
-                             ) from None
+                             f"config ({_first_error(exc)}); give the rig's constants with --config FILE") from None
     return out
 
 
