@@ -24,6 +24,11 @@ __all__ = ["FROZEN_S", "FrozenWatch", "frozen_words"]
 FROZEN_S = 2.0  # [s] every channel repeating its reading this long is a stalled acquisition
 
 
+def _frozen_samples(sample_rate: float) -> int:
+    """Repeats in a row [samples] that make a freeze at ``sample_rate`` [Hz]."""
+    return max(2, int(round(FROZEN_S * sample_rate)))
+
+
 def frozen_words(samples: np.ndarray, sample_rate: float) -> str | None:
     """Why a whole record's readings are not to be trusted when its five channels (``samples``
     (N, 5): ug, x1, x3, x4, x5, SI) repeat one reading for ``FROZEN_S`` seconds or more in a row
@@ -38,7 +43,7 @@ def frozen_words(samples: np.ndarray, sample_rate: float) -> str | None:
         return None
     k = int(np.argmax(ends - starts))
     run = int(ends[k] - starts[k])
-    if run < max(2, int(round(FROZEN_S * sample_rate))):
+    if run < _frozen_samples(sample_rate):
         return None
     return (f"ug, x1, x3, x4 and x5 repeat one reading for {run / sample_rate:g} s from sample {int(starts[k])}: a "
             "stalled acquisition re-sending its last reading, or a record made up of one sample? The estimates "
@@ -49,9 +54,6 @@ class FrozenWatch:
     """MonitorCore's watch over readings that stopped changing (a mixin)."""
 
     _prev: np.ndarray  # (rows, 5): each row's last sample (ug, x1, x3, x4, x5); NaN: none yet
-
-    def _frozen_samples(self) -> int:
-        return max(2, int(round(FROZEN_S * self.fleet.sample_rate)))
 
     def _frozen_flagged(self, rows: np.ndarray, vals: np.ndarray, ev) -> None:
         """Before the health of a batch: the evaluations of ``ev`` at which their rig's readings
@@ -86,7 +88,7 @@ class FrozenWatch:
         self._watched[r_s[last]] = index[last] + 1
         self._same[r_s[last]] = run[last]
         self._prev[r_s[last]] = v_s[last]
-        need = self._frozen_samples()
+        need = _frozen_samples(self.fleet.sample_rate)
         if not len(ev) or run.max(initial=0) < need:
             return
         at = np.empty(len(r_s), dtype=np.int64)
