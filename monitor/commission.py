@@ -39,6 +39,7 @@ from .calibrate import identify_fleet, severities
 from .ident_options import IdentOptions
 from .evaluations import Assessment
 from .pipeline import Pipeline
+from .audit.wiring import wiring_words
 from .readings import record_slip
 from .ranges import Estimate, ParamRange, Ranges
 from .refine import sensor_noise
@@ -213,7 +214,8 @@ def commission(samples: np.ndarray, config: RigConfig, *, restarts=(), options: 
         ``progress(done, total)`` with the twin's runs.
 
     Raises ValueError (one line) for a record too short, one whose readings cannot be in the
-    config's units (``monitor.readings``), one the identifier cannot converge on, one with
+    config's units (``monitor.readings``), one whose sensors look wired wrong
+    (``monitor.audit.wiring``), one the identifier cannot converge on, one with
     physically impossible estimates, or one that pins no graded parameter.
     """
     samples = np.asarray(samples, dtype=float)
@@ -226,6 +228,9 @@ def commission(samples: np.ndarray, config: RigConfig, *, restarts=(), options: 
     slip = record_slip(samples, config, options, restarts)
     if slip is not None:  # its estimates would carry the units, and its ranges be made around them
         raise ValueError(f"the record's readings cannot be in the rig config's units: {slip}")
+    wiring = wiring_words(samples, config, restarts)
+    if wiring is not None:  # its ranges would be made around the wrong pressures, and grade them health
+        raise ValueError(f"the record's sensors look wired wrong: {wiring}")
     reference = reference or Ranges.default()
     pipe = Pipeline(config=config, options=options, ranges=None)
     _, a = pipe.run(samples, restarts)

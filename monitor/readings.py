@@ -27,7 +27,7 @@ import numpy as np
 from hydromon.contract import CHANNELS
 
 __all__ = ["RANGE", "PRESSURE_LOW", "PRESSURE_NEGATIVE", "GLITCH_SAMPLES", "range_ratios", "unit_slip", "record_slip",
-           "sample_limits", "beyond"]
+           "sample_limits", "beyond", "longest_stretch"]
 
 RANGE = 10.0
 PRESSURE_LOW = 0.05
@@ -123,3 +123,10 @@ def record_slip(samples: np.ndarray, cfg, options=None, restarts=()) -> str | No
     from .outlier_gate import gated
 
     return unit_slip(gated(samples, options, restarts)[0], cfg, allow=GLITCH_SAMPLES)
+
+
+def longest_stretch(n: int, restarts=()) -> tuple[int, int]:
+    """``(lo, hi)``: samples[lo:hi] of a record of ``n`` samples is its longest stretch without a
+    gap (``restarts``: the samples that follow gaps; the first of equals)."""
+    bounds = [0, *restarts, n]
+    return max(zip(bounds[:-1], bounds[1:]), key=lambda b: b[1] - b[0])

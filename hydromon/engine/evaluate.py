@@ -17,6 +17,7 @@ from monitor.ident_options import IdentOptions
 from monitor.evaluations import Assessment, Events
 from monitor.pipeline import Pipeline
 from hydromon.engine.frozen_watch import frozen_words
+from monitor.audit.wiring import wiring_words
 from monitor.readings import record_slip
 from monitor.refine import Refinement, refine
 
@@ -39,13 +40,15 @@ class Evaluation:
     uncalibrated: str | None = None  # why no ranges grade the rig (None: some do)
     units: str | None = None  # why the readings (glitches mended) cannot be in the config's units
     frozen: str | None = None  # why the readings cannot be trusted: they repeat one reading (a stall)
+    wiring: str | None = None  # why the sensors look wired wrong: a dead channel, exchanged pressures
 
     @property
     def status(self) -> str:
         """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``), x1
         went beyond a chamber's end or a reading cannot be in the config's units
         (``monitor.readings``) or the readings repeat one reading for 2 s
-        (``hydromon.engine.frozen_watch``), ``uncalibrated`` when no ranges were made for the rig's
+        (``hydromon.engine.frozen_watch``) or the sensors look wired wrong
+        (``monitor.audit.wiring``), ``uncalibrated`` when no ranges were made for the rig's
         constants, ``ok`` once converged with a grade placed, else ``converging`` (the live
         monitor's statuses: a converged rig whose grade cannot be placed, level -1, is still
         converging)."""
@@ -60,7 +63,7 @@ class Evaluation:
             why.append("physically impossible estimates (" + ", ".join(a.implausible) + ")")
         if self.x1_clamped:
             why.append(f"x1 beyond a chamber's end in {self.x1_clamped} samples")
-        why += [w for w in (self.units, self.frozen) if w]
+        why += [w for w in (self.units, self.frozen, self.wiring) if w]
         return "; ".join(why) or None
 
     @property
@@ -84,7 +87,8 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
                       pipe.fleet.ranges if why is None else None, pipe.fleet.x1_clamped(0), options,
                       uncalibrated=None if why is None else f"{why}; {COMMISSION_HINT}",
                       units=record_slip(recording.samples, recording.config, options, recording.restarts),
-                      frozen=frozen_words(recording.samples, recording.config.sample_rate))
+                      frozen=frozen_words(recording.samples, recording.config.sample_rate),
+                      wiring=wiring_words(recording.samples, recording.config, recording.restarts))
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

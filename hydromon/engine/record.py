@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hydromon.contract import RigConfig
+from monitor.readings import longest_stretch
 
 __all__ = ["Recording"]
 
@@ -40,5 +41,4 @@ class Recording:
 
     def longest_stretch(self) -> tuple[int, int]:
         """``(lo, hi)``: samples[lo:hi] is the longest stretch without a gap (the first of equals)."""
-        bounds = [0, *self.restarts, len(self.samples)]
-        return max(zip(bounds[:-1], bounds[1:]), key=lambda b: b[1] - b[0])
+        return longest_stretch(len(self.samples), self.restarts)

@@ -49,6 +49,7 @@ def to_json(ev: Evaluation) -> dict:
     out["x1_outside_chambers"] = ev.x1_clamped
     out["units"] = ev.units  # why a reading cannot be in the config's units (None: it can)
     out["frozen"] = ev.frozen  # why the readings are not to be trusted: they repeat one reading (None: they do not)
+    out["wiring"] = ev.wiring  # why the sensors look wired wrong: a dead channel, exchanged pressures (None: not)
     out["implausible"] = list(a.implausible)  # impossible estimates: the grade is withheld
     rec = ev.recording
     out["gaps"] = {"count": len(rec.restarts), "missing_samples": rec.missing, "rejected_samples": rec.rejected,
@@ -139,6 +140,8 @@ def render(ev: Evaluation, console=None) -> None:
         console.print(f"[red]not to be trusted: {ev.units}[/red]", highlight=False)
     if ev.frozen:
         console.print(f"[red]not to be trusted: {ev.frozen}[/red]", highlight=False)
+    if ev.wiring:
+        console.print(f"[red]not to be trusted: {ev.wiring}[/red]", highlight=False)
     if ev.x1_clamped:
         c = r.config
         lo, hi = -(1 - V_MIN) * c.V10 / c.A1, (1 - V_MIN) * c.V20 / c.A2

@@ -22,6 +22,7 @@ from hydromon.engine.record import Recording
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, OUT_OF_ORDER, RESTART, sequence_order
 from hydromon.store.csvfile import read_csv
 from hydromon.store.sampling import check_sampling, check_seq_rate, time_jitter
+from monitor.audit.wiring import dead_drive_words
 from monitor.drive import command_for_drive
 
 __all__ = ["Recording", "load_recording", "recording_rigs"]
@@ -61,11 +62,15 @@ def _after_last_change(messages: list[tuple[int, RigConfig]], stored: list[RigCo
     return current, first, changes
 
 
-def _take_drive(data: np.ndarray, u: np.ndarray, config: RigConfig) -> int:
+def _take_drive(data: np.ndarray, u: np.ndarray, config: RigConfig, name: str) -> int:
     """Where a sample carries the valve drive u [V], make its command the one under which the
     rig constants' loop drives the valve with u (``monitor.drive``), in place in ``data``
-    (columns t, ug, x1, ...); returns how many samples did."""
+    (columns t, ug, x1, ...); returns how many samples did. ValueError for a dead drive
+    (``monitor.audit.wiring.dead_drive_words``): it would grade a valve that is not driven."""
     has = np.isfinite(u)
+    why = dead_drive_words(u[has], data[has, 5], config)
+    if why:
+        raise ValueError(f"{name}: {why}")
     if has.any():
         data[has, 1] = command_for_drive(u[has], data[has, 2], config.K_p, config.K_f)
     return int(has.sum())
@@ -120,7 +125,7 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         data = read_csv(path, drive=drive)
         config = config or RigConfig()
         restarts, missing = check_sampling(data[:, 0], config.sample_rate, lambda i: f"{name} line {i + 2}")
-        driven = _take_drive(data, np.array(drive), config)
+        driven = _take_drive(data, np.array(drive), config, name)
         return Recording("csv", data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
                          tuple(restarts), missing, drive_samples=driven)
     if suffix == ".mcap":
@@ -184,7 +189,7 @@ def load_recording(path: str | Path, rig: str | None = None, config: RigConfig |
         idx = idx[keep]
         data, seq = data[idx], seq[idx]
         check_seq_rate(data[:, 0], seq, config.sample_rate, where)
-        driven = _take_drive(data, np.array(drive)[idx], config)
+        driven = _take_drive(data, np.array(drive)[idx], config, name)
         jitter, jitter_max = time_jitter(data[:, 0], seq, config.sample_rate)
         return Recording(rig_id, data[:, 0].copy(), np.ascontiguousarray(data[:, 1:]), config, name,
                          tuple(restarts), missing, len(rejected), duplicate, out_of_order,

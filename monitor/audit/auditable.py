@@ -17,8 +17,10 @@ from hydromon.contract import CHANNELS
 
 from ..readings import unit_slip
 from .signals import noise_levels
+from .wiring import dead_words, exchanged_words
 
-__all__ = ["require_auditable", "require_live_channels", "require_no_glitch", "require_in_range", "require_excitation",
+__all__ = ["require_auditable", "require_live_channels", "require_wired", "require_no_glitch",
+           "require_in_range", "require_excitation",
            "find_glitch", "largest_excursion", "excitation_ratios", "held", "glitch_span", "GLITCH", "GLITCH_SPAN",
            "EXCITATION", "STILL"]
 
@@ -39,16 +41,19 @@ _PARTS = "(the first part fits, the rest scores; --train-fraction moves the spli
 
 def require_live_channels(samples: np.ndarray) -> None:
     """Refuse (ValueError naming them) samples ``ug, x1, x3, x4, x5`` in which a measured channel
-    reads one value throughout: a sensor not logged, stuck, or written with too few decimals
-    leaves singular equations, or none to fit, where a moving rig's sensors all vary."""
-    s = np.asarray(samples, dtype=float)
-    if s.ndim != 2 or s.shape[1] != 5 or not len(s) or not np.all(np.isfinite(s)):
-        return  # ``signals`` says what is wrong with these
-    flat = [(name, s[0, k]) for k, name in enumerate(CHANNELS[1:], 1) if np.ptp(s[:, k]) == 0.0]
-    if flat:
-        raise ValueError(", ".join(f"{name} is {float(value):.6g}" for name, value in flat) + " in every sample: a "
-                         "sensor that is not logged, stuck, or written with too few decimals (the audit fits how the "
-                         "rig moves: every measured channel must vary)")
+    reads one value throughout (``monitor.audit.wiring.dead_channels``): it leaves singular
+    equations, or none to fit, where a moving rig's sensors all vary."""
+    why = dead_words(samples)
+    if why:
+        raise ValueError(f"{why} (the audit fits how the rig moves: every measured channel must vary)")
+
+
+def require_wired(samples: np.ndarray, cfg) -> None:
+    """Refuse (ValueError) samples whose chamber pressures x3 and x4 look exchanged
+    (``monitor.audit.wiring``): every model would be judged on the wrong pressures."""
+    why = exchanged_words(samples, cfg)
+    if why:
+        raise ValueError(f"{why}: the audit judges models by the chamber pressures, so mend the record first")
 
 
 def largest_excursion(x: np.ndarray, span: int) -> tuple[int, int, float, float] | None:
@@ -205,8 +210,8 @@ def require_excitation(samples: np.ndarray, K_f: float, split: int, h: float) ->
 
 def require_auditable(samples: np.ndarray, cfg, split: int) -> None:
     """Every check of this module, in the order a person would mend the record: a dead sensor,
-    a glitch, readings the rig's config ``cfg`` cannot hold, then too little excitation (``split``
-    as ``require_excitation``)."""
+    a glitch, readings the rig's config ``cfg`` cannot hold, too little excitation (``split``
+    as ``require_excitation``), then exchanged chamber pressures."""
     require_live_channels(samples)
     s = np.asarray(samples, dtype=float)
     h = cfg.h
@@ -215,3 +220,4 @@ def require_auditable(samples: np.ndarray, cfg, split: int) -> None:
     require_no_glitch(s, h)
     require_in_range(s, cfg)
     require_excitation(s, cfg.K_f, split, h)
+    require_wired(s, cfg)

@@ -16,7 +16,7 @@ from plant_sim.simulate import simulate
 
 KEYS = {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps", "implausible",
         "x1_outside_chambers", "timestamp_jitter", "config_changes", "memory_s", "uncalibrated", "why", "units",
-        "frozen"}
+        "frozen", "wiring"}
 
 
 @pytest.fixture(scope="module")

@@ -91,7 +91,7 @@ def test_evaluate_adds_the_refinement_to_its_json():
     doc = to_json(evaluate(rec, refined=True))
     assert set(doc) == {"grade", "level", "confidence", "status", "params", "std_errors", "glitches_replaced", "gaps",
                         "x1_outside_chambers", "timestamp_jitter", "config_changes", "memory_s", "implausible", "refined",
-                        "uncalibrated", "why", "units", "frozen"}
+                        "uncalibrated", "why", "units", "frozen", "wiring"}
     assert doc["refined"]["ok"] and set(doc["refined"]["params"]) == set(REFINED)
     assert abs(doc["refined"]["params"]["B_fv"] / r.params.identified()["B_fv"] - 1) < 0.03
     assert "refined" not in to_json(evaluate(rec))
