@@ -39,6 +39,7 @@ from hydromon.engine.counters import MonitorCounters
 from hydromon.engine.frame_batch import FrameBatch
 from hydromon.engine.frames import FrameInput
 from hydromon.engine.frozen_watch import FrozenWatch
+from hydromon.engine.stuck_watch import StuckWatch
 from hydromon.engine.ranges_book import RangesBook
 from hydromon.engine.rig_table import ROW_STATE, Rig, RigTable
 from hydromon.engine.sequence import AHEAD, DUPLICATE, GAP, RESTART, SeqState, sequence_push
@@ -60,7 +61,7 @@ _SEQ = _KEY = _FIRST = itemgetter(0)
 _PAYLOAD = itemgetter(1)
 
 
-class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch, FrozenWatch):
+class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch, FrozenWatch, StuckWatch):
     """The monitor without the bus: ``process(messages) -> [(health_key, payload)]``.
 
     Parameters
@@ -173,6 +174,7 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch, Fr
                     kept.append(vals[mine])
         ev = self.fleet.update(rows, vals[:, 1:])
         self._units_flagged(rows, vals, ev)
+        self._stuck_flagged(rows, vals, ev)  # before the frozen watch, which moves each row's last sample on
         self._frozen_flagged(rows, vals, ev)
         if len(ev):
             self._health(ev, vals[:, 0], out)

@@ -17,6 +17,7 @@ from monitor.ident_options import IdentOptions
 from monitor.evaluations import Assessment, Events
 from monitor.pipeline import Pipeline
 from hydromon.engine.frozen_watch import frozen_words
+from hydromon.engine.stuck_watch import stuck_words
 from monitor.audit.wiring import wiring_words
 from monitor.readings import record_slip
 from monitor.refine import Refinement, refine
@@ -39,7 +40,7 @@ class Evaluation:
     options: IdentOptions | None = None  # the identifier's options (None: defaults)
     uncalibrated: str | None = None  # why no ranges grade the rig (None: some do)
     units: str | None = None  # why the readings (glitches mended) cannot be in the config's units
-    frozen: str | None = None  # why the readings cannot be trusted: they repeat one reading (a stall)
+    frozen: str | None = None  # why the readings cannot be trusted: they stopped changing (a stall, a stuck pressure)
     wiring: str | None = None  # why the sensors look wired wrong: a dead channel, exchanged pressures
 
     @property
@@ -87,8 +88,16 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
                       pipe.fleet.ranges if why is None else None, pipe.fleet.x1_clamped(0), options,
                       uncalibrated=None if why is None else f"{why}; {COMMISSION_HINT}",
                       units=record_slip(recording.samples, recording.config, options, recording.restarts),
-                      frozen=frozen_words(recording.samples, recording.config.sample_rate),
+                      frozen=_frozen(recording),
                       wiring=wiring_words(recording.samples, recording.config, recording.restarts))
+
+
+def _frozen(recording: Recording) -> str | None:
+    """Readings that stopped changing: all five channels (``hydromon.engine.frozen_watch``), else
+    a chamber pressure under a moving spool (``hydromon.engine.stuck_watch``), as the live
+    monitor flags them."""
+    c = recording.config
+    return frozen_words(recording.samples, c.sample_rate) or stuck_words(recording.samples, c.sample_rate, c.x5_span)
 
 
 def _refine(recording: Recording, options: IdentOptions | None, assessment: Assessment) -> Refinement:

@@ -42,6 +42,13 @@ ROW_STATE = (
     ("_same", 0, np.int64),            # samples in a row repeating the one before (hydromon.engine.frozen_watch)
     ("_watched", 0, np.int64),         # samples the frozen watch has seen
     ("_frozen_from", -1, np.int64),    # where the freeze last warned of began, in those samples (-1: none)
+    ("_run3", 0, np.int64),            # samples in a row repeating the x3 before (hydromon.engine.stuck_watch)
+    ("_run4", 0, np.int64),            # the same of x4
+    ("_lo3", np.inf, np.float64),      # the spool's extremes [m] over x3's run
+    ("_hi3", -np.inf, np.float64),
+    ("_lo4", np.inf, np.float64),      # and over x4's
+    ("_hi4", -np.inf, np.float64),
+    ("_stuck_from", -1, np.int64),     # where the stuck stretch last warned of began, in _watched's samples
 )
 
 

@@ -48,7 +48,7 @@ def to_json(ev: Evaluation) -> dict:
         out["glitches_replaced"] = ev.glitches
     out["x1_outside_chambers"] = ev.x1_clamped
     out["units"] = ev.units  # why a reading cannot be in the config's units (None: it can)
-    out["frozen"] = ev.frozen  # why the readings are not to be trusted: they repeat one reading (None: they do not)
+    out["frozen"] = ev.frozen  # why the readings are not to be trusted: they stopped changing (None: they did not)
     out["wiring"] = ev.wiring  # why the sensors look wired wrong: a dead channel, exchanged pressures (None: not)
     out["implausible"] = list(a.implausible)  # impossible estimates: the grade is withheld
     rec = ev.recording

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from hydromon import contract
 from hydromon.engine.frozen_watch import FROZEN_S
+from hydromon.engine.stuck_watch import STUCK_S
 from hydromon.contract import (DEFAULT_NAMESPACE, GRADES, PARAM_NAMES, PARAM_UNITS, STATUSES, Event, Frame, Health, RigConfig,
                                Sample)
 
@@ -118,8 +119,9 @@ def render() -> str:
         "constants or x1's zero, sign or unit are wrong; grade kept), or its readings keep breaking its config's bounds",
         "(x1 or x5 beyond 10 times its sensor's span, a pressure beyond 10 times `p_span` or below -10 % of `p_s`: a",
         f"channel in other units; grade kept), or its five channels have repeated one reading for {FROZEN_S:g} s (a stalled",
-        "acquisition; grade kept), or an estimate is physically impossible (a negative compressibility,",
-        "orifice coefficient or valve gain: input in wrong units or sign; grade `unknown`).",
+        f"acquisition; grade kept), or its x3 or x4 has held one reading for {STUCK_S:g} s while the spool moved",
+        "(a dead or stuck pressure sensor; grade kept), or an estimate is physically impossible (a negative",
+        "compressibility, orifice coefficient or valve gain: input in wrong units or sign; grade `unknown`).",
         "`stale`: the first health after a gap in the rig's `seq`, or the rig's latest health re-sent once when it",
         "has sent no sample for `hydromon monitor --stale-after` seconds (default 2; its grade and numbers are",
         "those of its last samples; the health query answers it too until the rig's next health; re-sent",

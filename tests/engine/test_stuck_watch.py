@@ -1,0 +1,105 @@
+"""The live monitor says ``bad-input`` for a rig whose chamber pressure stopped changing while
+its spool moves (``hydromon.engine.stuck_watch``): a dead or stuck pressure sensor, which the
+estimates would otherwise fit as they can; ``evaluate`` says the same of a record."""
+
+from __future__ import annotations
+
+import numpy as np
+import orjson
+import pytest
+
+from hydromon.contract import RigConfig
+from hydromon.engine.core import MonitorCore
+from hydromon.engine.evaluate import evaluate
+from hydromon.engine.frames import frame_payload
+from hydromon.engine.record import Recording
+from hydromon.engine.samples import sample_payload
+from hydromon.engine.stuck_watch import STUCK_S, stuck_words
+from plant_sim.degradation import degrade
+from plant_sim.noise import noise_model
+from plant_sim.profiles import parse_profile
+from plant_sim.simulate import simulate
+
+NS = "hydro"
+NEED = int(STUCK_S * 100)
+
+
+@pytest.fixture(scope="module", params=["realistic", "none"])
+def run(request):
+    return simulate(parse_profile("paper-var"), 30.0, params=degrade(0.3), noise=noise_model(request.param), seed=2)
+
+
+def _stuck(run, column, a, b):
+    """The record with pressure ``column`` (2: x3, 3: x4) holding sample a's reading until b."""
+    s = run.samples.copy()
+    s[a:b, column] = s[a, column]
+    return s
+
+
+def _messages(run, samples, frame=None, rig="a"):
+    if frame is None:
+        return [(f"{NS}/rig/{rig}/sample", sample_payload(k, float(run.t[k]), samples[k].tolist()))
+                for k in range(len(samples))]
+    return [(f"{NS}/rig/{rig}/frame", frame_payload(k, run.t[k:k + frame].tolist(), samples[k:k + frame].T.tolist()))
+            for k in range(0, len(samples), frame)]
+
+
+def _run(msgs, batch=None):
+    warnings = []
+    core = MonitorCore(NS, on_warning=lambda rig, msg: warnings.append((rig, msg)))
+    out, step = [], batch or len(msgs)
+    for j in range(0, len(msgs), step):
+        out += core.process(msgs[j:j + step])
+    health = [orjson.loads(p) for k, p in out if k.endswith("/health")]
+    return health, [w for w in warnings if "dead or stuck pressure sensor" in w[1]]
+
+
+@pytest.mark.parametrize("column", [2, 3])
+def test_a_stuck_pressure_says_bad_input_after_stuck_s_and_is_warned_once(run, column):
+    health, warned = _run(_messages(run, _stuck(run, column, 500, 2200)), batch=50)
+    status = {h["seq"]: h["status"] for h in health}
+    stuck = [s for s in status if 500 + NEED <= s < 2200]
+    assert len(stuck) > 50 and {status[s] for s in stuck} == {"bad-input"}, sorted(set(status.values()))
+    assert "bad-input" not in {status[s] for s in status if s < 500 + NEED - 1}  # a held reading, not yet stuck
+    assert [w[0] for w in warned] == ["a"] and f"x{column + 1} has read" in warned[0][1], warned
+
+
+def test_a_rig_held_still_with_a_coarse_pressure_sensor_is_not_stuck():
+    """A pressure on a 10 kPa grid under a rig at rest repeats for good: no spool motion, no call."""
+    held = simulate(parse_profile("steps:low=2,high=2"), 30.0, params=degrade(0.3), seed=2)
+    s = held.samples.copy()
+    s[:, 2:4] = np.round(s[:, 2:4] / 1e4) * 1e4
+    health, warned = _run(_messages(held, s), batch=50)
+    assert health and "bad-input" not in {h["status"] for h in health} and not warned
+
+
+@pytest.mark.parametrize("profile", ["paper-var", "paper-id", "steps", "multisine"])
+@pytest.mark.parametrize("noise", ["none", "realistic", "stress"])
+def test_a_right_record_is_never_flagged_even_on_a_coarse_grid(profile, noise):
+    """Every input shape and noise model, the pressures on a 12-bit transducer's 10 kPa grid and
+    the spool on a 0.5 um one."""
+    r = simulate(parse_profile(profile), 30.0, params=degrade(0.5), noise=noise_model(noise), seed=3)
+    s = r.samples.copy()
+    s[:, 2:4] = np.round(s[:, 2:4] / 1e4) * 1e4
+    s[:, 4] = np.round(s[:, 4] / 5e-7) * 5e-7
+    assert stuck_words(s, 100.0, RigConfig().x5_span) is None
+    health, warned = _run(_messages(r, s), batch=100)
+    assert not warned
+
+
+def test_the_health_does_not_depend_on_how_the_messages_were_batched_or_framed(run):
+    s = _stuck(run, 2, 400, 1900)
+    one, _ = _run(_messages(run, s))
+    assert any(h["status"] == "bad-input" for h in one)
+    for batch in (1, 7, 64):
+        assert _run(_messages(run, s), batch)[0] == one, batch
+    assert _run(_messages(run, s, frame=10), batch=3)[0] == one
+
+
+def test_evaluate_names_the_stuck_pressure_and_where(run):
+    s = _stuck(run, 3, 700, 2300)
+    ev = evaluate(Recording("r", run.t, s, RigConfig(), "test"))
+    assert ev.status == "bad-input" and ev.frozen.startswith(f"x4 reads {s[700, 3]:.6g} Pa for 16 s from sample 700")
+    assert evaluate(Recording("r", run.t, run.samples, RigConfig(), "test")).frozen is None
+    short = _stuck(run, 3, 700, 700 + NEED - 1)  # a reading held just short of STUCK_S
+    assert stuck_words(short, 100.0, RigConfig().x5_span) is None
