@@ -300,6 +300,8 @@ def calibrate_labelled(params: np.ndarray, labels: np.ndarray, rig: RigConfig, t
     grades 0..4 (e.g. from maintenance records).
 
     Edges between two grades that both have records come from the records (:func:`fit_ranges`);
+    a parameter that moves the other way than ``template`` says wear moves it (labels in reverse
+    order, or records that do not differ in it) is left out, with why, in ``ungraded``;
     the others from ``commissioned`` (the rig's commissioned ranges: its baseline's relative
     bands), so a plant with records of some grades only still gets every edge. Without it, a
     grade with no record is a ValueError naming it. ``template`` (default ``Ranges.default()``)
@@ -320,6 +322,11 @@ def calibrate_labelled(params: np.ndarray, labels: np.ndarray, rig: RigConfig, t
     fitted, _, dropped = fit_ranges(params, labels, graded, strict=False, labels_present=present)
     out, missing = {}, set()
     for name, (direction, x) in fitted.items():
+        if direction != graded.params[name].direction:  # wear moves each graded parameter one way
+            dropped[name] = (f"{name}: {'rises' if direction == 'rising' else 'falls'} as the labels worsen, where wear "
+                             f"makes it {'rise' if graded.params[name].direction == 'rising' else 'fall'}: are the labels "
+                             "in reverse order (0 health .. 4 fault), or do the records not differ in it?")
+            continue
         base = None if commissioned is None else commissioned.params.get(name)
         if x is None or isinstance(x, tuple) and not all(np.isfinite(x)):
             if base is None:

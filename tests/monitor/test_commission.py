@@ -95,3 +95,8 @@ def test_labelled_records_give_the_rigs_ranges_and_a_commissioned_file_fills_mis
     filled = calibrate_labelled(rows[partial], labels[partial], CFG, commissioned=commissioned.ranges)
     assert filled.params["K_sv"].edges[2:] == commissioned.ranges.params["K_sv"].edges[2:]
     assert filled.params["C_ip"] == commissioned.ranges.params["C_ip"]
+    # labels in reverse order (4 the healthy records) would turn every direction: each parameter
+    # then moves against wear, and is left out saying so
+    with pytest.raises(ValueError, match="no graded parameter could be calibrated: .*are the labels in reverse order"):
+        calibrate_labelled(rows, 4 - labels, CFG)
+    assert not calibrate_labelled(rows, labels, CFG).ungraded.keys() & {"K_sv", "C_ip", "C_ep"}

@@ -61,7 +61,7 @@ def comparison_table(ranges, dropped, reference, reference_title: str = "paper (
         ours = ranges.params.get(name)
         ref = ours or reference.params[name]
         t.add_row(name, ref.direction, fmt(reference.params.get(name)),
-                  fmt(ours) if ours else "left out (labels overlap)" if name in dropped else "not graded")
+                  fmt(ours) if ours else "left out (below)" if name in dropped else "not graded")
     return t
 
 
@@ -110,6 +110,8 @@ def run_labelled(args) -> int:
 
     Console().print(comparison_table(ranges, ranges.ungraded, baseline or Ranges.default(),
                                      "commissioned" if baseline else "reference rig"))
+    for why in ranges.ungraded.values():
+        print(f"hydromon calibrate: left out {why}", file=sys.stderr)
     print(f"hydromon calibrate: ranges -> {args.out}", file=sys.stderr)
     return 0
 
