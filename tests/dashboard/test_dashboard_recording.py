@@ -93,3 +93,33 @@ def test_a_recording_s_ages_are_taken_at_its_end_and_one_without_verdicts_says_s
             assert page.errors == []
     finally:
         procs.close()
+
+
+@pytest.mark.timeout(120)
+def test_a_rig_with_one_verdict_is_plotted_over_a_minute_with_24_hour_ticks(tmp_path):
+    """uPlot spans one time value over years, and labels it in the browser's locale (US dates in
+    an en-US browser): the rig page gives one verdict a minute around it and 24-hour labels."""
+    first = set()
+
+    def keep(key):  # every rig's samples and config, and its first verdict only
+        if key.endswith("/health"):
+            if key in first:
+                return False
+            first.add(key)
+        return True
+
+    _rewritten(tmp_path / "one-verdict.mcap", keep)
+    procs = Procs(tmp_path)
+    try:
+        url = procs.dashboard("one", "--recording", str(tmp_path / "one-verdict.mcap"))
+        with chromium() as ctx:
+            page = Watched(ctx)
+            page.page.goto(url + "rig/table4-g3")
+            page.page.wait_for_selector("#graded .plot canvas", timeout=15_000)
+            span = page.page.evaluate("() => [...plots.values()].map(u => u.scales.x.max - u.scales.x.min)")
+            assert span and all(s == pytest.approx(60.0) for s in span), span
+            labels = page.page.evaluate("() => timeTicks(null, [1e9, 1e9 + 15], 0, 0, 15)")
+            assert all(len(x) == 8 and x[2] == ":" and x[5] == ":" for x in labels), labels
+            assert page.errors == []
+    finally:
+        procs.close()

@@ -97,6 +97,28 @@ function fmt(v) {
   return a !== 0 && (a < 1e-3 || a >= 1e5) ? v.toExponential(2) : String(+v.toPrecision(4));
 }
 
+// time axis labels on a 24-hour clock and ISO dates, whatever the browser's locale (the page's
+// times name their zone)
+function timeTicks(u, splits, axisIdx, space, incr) {
+  const two = (n) => String(n).padStart(2, "0");
+  return splits.map((t) => {
+    const d = new Date(t * 1000);
+    if (incr >= 86400) return d.getFullYear() + "-" + two(d.getMonth() + 1) + "-" + two(d.getDate());
+    let sec = incr < 60 ? ":" + two(d.getSeconds()) : "";
+    if (incr < 1) {  // a recording made faster than real time: its ticks are fractions of a second apart
+      sec += "." + String(d.getMilliseconds()).padStart(3, "0").slice(0, Math.min(3, Math.ceil(-Math.log10(incr))));
+    }
+    return two(d.getHours()) + ":" + two(d.getMinutes()) + sec;
+  });
+}
+
+// one verdict (or several at one time) spans nothing, and uPlot pads a lone time by a day each
+// way: a minute around it instead
+function timeRange(u, min, max) {
+  const x = u.data[0];
+  return x.length && x[0] === x[x.length - 1] ? [x[0] - 30, x[0] + 30] : [min, max];
+}
+
 function makePlot(p, box) {
   const unit = units[p] || "";
   const div = el("div", "plot");
@@ -106,9 +128,9 @@ function makePlot(p, box) {
   const width = Math.max(380, div.clientWidth - 10);
   const opts = {
     width: width, height: 220,
-    scales: {x: {time: true}, y: {range: yRange(p)}},
-    axes: [{label: "time (" + RIG + ")"}, {label: p + " [" + unit + "]", size: 70, values: ticks}],
-    series: [{}, {label: p + " [" + unit + "]", stroke: "#1d2228", width: 1.5, value: (u, v) => fmt(v)},
+    scales: {x: {time: true, range: timeRange}, y: {range: yRange(p)}},
+    axes: [{label: "time (" + RIG + ")", values: timeTicks}, {label: p + " [" + unit + "]", size: 70, values: ticks}],
+    series: [{value: (u, v) => (v === null ? "-" : clock(v))}, {label: p + " [" + unit + "]", stroke: "#1d2228", width: 1.5, value: (u, v) => fmt(v)},
       {label: "+3 SE", stroke: "rgba(29,34,40,0.25)", value: (u, v) => fmt(v)},
       {label: "-3 SE", stroke: "rgba(29,34,40,0.25)", value: (u, v) => fmt(v)}],
     bands: [{series: [2, 3], fill: "rgba(29,34,40,0.10)"}],
