@@ -17,7 +17,7 @@ import itertools
 
 import numpy as np
 
-from hydromon.engine.stuck_watch import stuck_runs, stuck_words
+from hydromon.engine.stuck_watch import _one_row_runs, stuck_words
 from hydromon.tools.audit_cases import BANDS, CLAIMS, OUTSIDE, PROFILES, _drawn, _record
 from monitor.audit.wiring import SPOOL_MOVES
 
@@ -26,13 +26,13 @@ NOISES = ("none", "realistic", "stress")
 
 def _longest(s: np.ndarray, rate: float, moves: float) -> float:
     """The longest stretch [s] a pressure of ``s`` holds one reading under a spool that travels
-    more than ``moves`` [m] (the watch with an unreachable threshold, read at every sample)."""
-    state = [np.full(1, np.nan), np.full(1, np.nan), np.zeros(1, np.int64), np.zeros(1, np.int64),
-             np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)]
-    channel, began = stuck_runs(np.zeros(len(s), np.int64), s[:, 2], s[:, 3], s[:, 4], *state, np.full(1, moves), 1,
-                                np.zeros(1, np.int64))
-    hit = np.flatnonzero(channel)
-    return float((hit - began[hit]).max(initial=0)) / rate
+    more than ``moves`` [m] (the watch with a one-sample threshold, each channel read at every
+    sample)."""
+    longest = 0
+    for b in _one_row_runs(s, moves, 1):
+        hit = np.flatnonzero(b >= 0)
+        longest = max(longest, int((hit - b[hit]).max(initial=0)))
+    return longest / rate
 
 
 def main() -> None:

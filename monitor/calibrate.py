@@ -322,11 +322,18 @@ def calibrate_labelled(params: np.ndarray, labels: np.ndarray, rig: RigConfig, t
     fitted, _, dropped = fit_ranges(params, labels, graded, strict=False, labels_present=present)
     out, missing = {}, set()
     for name, (direction, x) in fitted.items():
-        if direction != graded.params[name].direction:  # wear moves each graded parameter one way
-            dropped[name] = (f"{name}: {'rises' if direction == 'rising' else 'falls'} as the labels worsen, where wear "
-                             f"makes it {'rise' if graded.params[name].direction == 'rising' else 'fall'}: are the labels "
-                             "in reverse order (0 health .. 4 fault), or do the records not differ in it?")
-            continue
+        wear = graded.params[name].direction
+        placed = x is not None and (isinstance(x, float) or bool(np.isfinite(x).any()))
+        if placed:  # the records place an edge: they must move the way wear moves the parameter
+            v = params[:, PARAM_NAMES.index(name)]
+            best, worst = np.median(v[labels == present[0]]), np.median(v[labels == present[-1]])
+            if best == worst or direction != wear:
+                moved = "does not change" if best == worst else "rises" if direction == "rising" else "falls"
+                dropped[name] = (f"{name}: {moved} as the labels worsen, where wear makes it "
+                                 f"{'rise' if wear == 'rising' else 'fall'}: are the labels in reverse order (0 health "
+                                 ".. 4 fault), or do the records not differ in it?")
+                continue
+        direction = wear  # the commissioned edges alone: the direction they were made with
         base = None if commissioned is None else commissioned.params.get(name)
         if x is None or isinstance(x, tuple) and not all(np.isfinite(x)):
             if base is None:

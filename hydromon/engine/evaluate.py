@@ -48,7 +48,8 @@ class Evaluation:
         """``bad-input`` when an estimate is physically impossible (``monitor.plausibility``), x1
         went beyond a chamber's end or a reading cannot be in the config's units
         (``monitor.readings``) or the readings repeat one reading for 2 s
-        (``hydromon.engine.frozen_watch``) or the sensors look wired wrong
+        (``hydromon.engine.frozen_watch``) or a chamber pressure holds one under a moving spool
+        for 10 s (``hydromon.engine.stuck_watch``) or the sensors look wired wrong
         (``monitor.audit.wiring``), ``uncalibrated`` when no ranges were made for the rig's
         constants, ``ok`` once converged with a grade placed, else ``converging`` (the live
         monitor's statuses: a converged rig whose grade cannot be placed, level -1, is still

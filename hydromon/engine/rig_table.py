@@ -48,7 +48,8 @@ ROW_STATE = (
     ("_hi3", -np.inf, np.float64),
     ("_lo4", np.inf, np.float64),      # and over x4's
     ("_hi4", -np.inf, np.float64),
-    ("_stuck_from", -1, np.int64),     # where the stuck stretch last warned of began, in _watched's samples
+    ("_stuck_from3", -1, np.int64),    # where x3's stuck stretch last warned of began, in _watched's samples
+    ("_stuck_from4", -1, np.int64),    # and x4's
 )
 
 

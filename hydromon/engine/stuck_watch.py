@@ -16,7 +16,8 @@ coarse a grid it stands (``benchmarks/stuck_scan.py``).
 
 A mixin of :class:`hydromon.engine.core.MonitorCore`: ``_run3``, ``_run4`` (samples in a row
 repeating the pressure before), ``_lo3`` .. ``_hi4`` (the spool's extremes over those samples)
-and ``_stuck_from`` (where the stuck stretch last warned of began, counted in ``_watched``) are
+and ``_stuck_from3``, ``_stuck_from4`` (where each channel's stuck stretch last warned of
+began, counted in ``_watched``) are
 rows of its ``ROW_STATE``; it reads each row's last sample in ``_prev`` before the frozen watch
 moves it on. Not saved in a checkpoint. ``stuck_words`` says the same of a whole record.
 """
@@ -41,18 +42,19 @@ def _stuck_samples(sample_rate: float) -> int:
 
 @njit(cache=True)
 def stuck_runs(rows, p3, p4, x5, prev3, prev4, run3, run4, lo3, hi3, lo4, hi4, moves, need, seen):
-    """Sample by sample, in the order taken: whether each sample ends a stuck stretch of its
-    row's x3 or x4 (module docstring), which (3 or 4, else 0) and where that stretch began.
+    """Sample by sample, in the order taken: where the stuck stretch of its row's x3 and of its
+    x4 that each sample ends began (module docstring), -1 where none.
 
     ``rows`` (m,) the samples' rows; ``p3``, ``p4`` [Pa] and ``x5`` [m] (m,) their readings;
     per row, updated in place: ``prev3``, ``prev4`` the last pressures [Pa] (NaN: none),
     ``run3``, ``run4`` the repeats in a row, ``lo3`` .. ``hi4`` the spool's extremes [m] since
     each run began; ``moves`` [m] per row the spool travel that makes a held pressure stuck;
-    ``need`` the repeats that do; ``seen`` per row the samples before this batch (the stretch's
-    start is counted in them). Returns ``(channel (m,) int8, began (m,) int64)``."""
+    ``need`` the repeats that do; ``seen`` per row the samples before this batch (a stretch's
+    start is counted in them). Every per-row array holds every row of ``rows``. Returns
+    ``(began3 (m,), began4 (m,))``, int64."""
     m = len(rows)
-    channel = np.zeros(m, dtype=np.int8)
-    began = np.full(m, -1, dtype=np.int64)
+    began3 = np.full(m, -1, dtype=np.int64)
+    began4 = np.full(m, -1, dtype=np.int64)
     count = np.zeros(len(prev3), dtype=np.int64)
     for i in range(m):
         r = rows[i]
@@ -73,32 +75,38 @@ def stuck_runs(rows, p3, p4, x5, prev3, prev4, run3, run4, lo3, hi3, lo4, hi4, m
             run4[r], lo4[r], hi4[r] = 0, v, v
         prev3[r], prev4[r] = p3[i], p4[i]
         if run3[r] >= need and hi3[r] - lo3[r] > moves[r]:
-            channel[i], began[i] = 3, at - run3[r]
-        elif run4[r] >= need and hi4[r] - lo4[r] > moves[r]:
-            channel[i], began[i] = 4, at - run4[r]
-    return channel, began
+            began3[i] = at - run3[r]
+        if run4[r] >= need and hi4[r] - lo4[r] > moves[r]:
+            began4[i] = at - run4[r]
+    return began3, began4
+
+
+def _one_row_runs(s: np.ndarray, moves: float, need: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`stuck_runs` over one record (``s`` (N, 5): ug, x1, x3, x4, x5 [SI]) from a fresh state."""
+    fresh = [np.full(1, np.nan), np.full(1, np.nan), np.zeros(1, np.int64), np.zeros(1, np.int64),
+             np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)]
+    return stuck_runs(np.zeros(len(s), np.int64), s[:, 2], s[:, 3], s[:, 4], *fresh, np.full(1, moves), need,
+                      np.zeros(1, np.int64))
 
 
 def stuck_words(samples: np.ndarray, sample_rate: float, x5_span: float) -> str | None:
     """Why a whole record's pressures cannot be trusted when x3 or x4 holds one reading for
     ``STUCK_S`` under a moving spool (what the live monitor flags), naming the first such
-    stretch; else None. ``samples`` (N, 5): ug, x1, x3, x4, x5 [SI]; ``sample_rate`` [Hz];
-    ``x5_span`` [m] the spool sensor's span."""
+    stretch; else None. A pressure that reads one value throughout is left to the wiring check
+    (``monitor.audit.wiring``), which names it dead. ``samples`` (N, 5): ug, x1, x3, x4, x5
+    [SI]; ``sample_rate`` [Hz]; ``x5_span`` [m] the spool sensor's span."""
     s = np.asarray(samples, dtype=float)
     if len(s) < 2:
         return None
-    one = np.zeros(1)
-    state = [np.full(1, np.nan), np.full(1, np.nan), np.zeros(1, np.int64), np.zeros(1, np.int64),
-             one.copy(), one.copy(), one.copy(), one.copy()]
-    channel, began = stuck_runs(np.zeros(len(s), np.int64), s[:, 2], s[:, 3], s[:, 4], *state,
-                                np.full(1, SPOOL_MOVES * x5_span), _stuck_samples(sample_rate), np.zeros(1, np.int64))
-    hit = np.flatnonzero(channel)
-    if not len(hit):
+    began = _one_row_runs(s, SPOOL_MOVES * x5_span, _stuck_samples(sample_rate))
+    found = []
+    for k, b in zip((3, 4), began):
+        col, hit = k - 1, np.flatnonzero(b >= 0)  # x3, x4 are columns 2, 3
+        if len(hit) and np.ptp(s[:, col]) > 0.0:
+            found.append((int(b[hit[0]]), k, col))
+    if not found:
         return None
-    k = int(channel[hit[0]])
-    col, start = k - 1, int(began[hit[0]])  # x3, x4 are columns 2, 3
-    if np.ptp(s[:, col]) == 0.0:
-        return None  # one value throughout: the wiring check names the dead channel (monitor.audit.wiring)
+    start, k, col = min(found)
     end = start + 1
     while end < len(s) and s[end, col] == s[start, col]:
         end += 1
@@ -121,19 +129,18 @@ class StuckWatch:
         moves = np.full(n_rows, np.inf)  # [m] per row; rows without a rig yet hold nothing
         known = min(n_rows, len(self._limits))
         moves[:known] = SPOOL_MOVES * self._limits[:known, 1] / RANGE  # the limits hold RANGE x5 spans
-        channel, began = stuck_runs(rows, vals[:, 3], vals[:, 4], vals[:, 5], prev3, prev4, self._run3, self._run4,
-                                    self._lo3, self._hi3, self._lo4, self._hi4, moves,
-                                    _stuck_samples(self.fleet.sample_rate), self._watched)
-        if not len(ev) or not channel.any():
+        began = stuck_runs(rows, vals[:, 3], vals[:, 4], vals[:, 5], prev3, prev4, self._run3, self._run4,
+                           self._lo3, self._hi3, self._lo4, self._hi4, moves, _stuck_samples(self.fleet.sample_rate),
+                           self._watched)
+        if not len(ev) or (began[0].max(initial=-1) < 0 and began[1].max(initial=-1) < 0):
             return
-        at = channel[ev.sample]
-        for i, r, k, b in zip(ev.sample[at > 0].tolist(), ev.rig[at > 0].tolist(), at[at > 0].tolist(),
-                              began[ev.sample[at > 0]].tolist()):
-            self._b_status[i] = "bad-input"
-            if self._stuck_from[r] != b:  # a stretch not warned of yet
-                self._stuck_from[r] = b
-                if self.on_warning is not None:
-                    self.on_warning(self.fleet.ids[r], f"x{k} has read {vals[i, k]:.6g} Pa for {STUCK_S:g} s or more "
-                                                       "while the spool moved: a dead or stuck pressure sensor? Its "
-                                                       "health says bad-input until it changes")
-
+        for k, b, warned in zip((3, 4), began, (self._stuck_from3, self._stuck_from4)):
+            at = b[ev.sample]
+            for i, r, start in zip(ev.sample[at >= 0].tolist(), ev.rig[at >= 0].tolist(), at[at >= 0].tolist()):
+                self._b_status[i] = "bad-input"
+                if warned[r] != start:  # a stretch of this channel not warned of yet
+                    warned[r] = start
+                    if self.on_warning is not None:
+                        self.on_warning(self.fleet.ids[r], f"x{k} has read {vals[i, k]:.6g} Pa for {STUCK_S:g} s or "
+                                                           "more while the spool moved: a dead or stuck pressure "
+                                                           "sensor? Its health says bad-input until it changes")

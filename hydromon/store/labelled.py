@@ -1,8 +1,8 @@
 """Labelled-record lists for ``hydromon calibrate --labelled``: which recording of which rig had
 which grade (e.g. from maintenance records), as CSV or TOML.
 
-CSV: a header ``recording,grade`` and optionally ``rig``; TOML: ``[[records]]`` tables with the
-same keys. ``recording`` is a .mcap or .csv path, relative to the list file's directory unless
+CSV: a header ``recording,grade`` and optionally ``rig`` (other columns, notes say, are
+ignored); TOML: ``[[records]]`` tables with the same keys and no other. ``recording`` is a .mcap or .csv path, relative to the list file's directory unless
 absolute; ``grade`` one of health, sub-health, average, deterioration, fault (or 0-4); ``rig``
 picks the rig of a multi-rig MCAP.
 """
@@ -17,6 +17,8 @@ from pathlib import Path
 from hydromon.contract import GRADES
 
 __all__ = ["LabelledRecord", "load_labelled"]
+
+_KEYS = ("recording", "grade", "rig")
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,11 @@ def load_labelled(path: str | Path) -> list[LabelledRecord]:
         if not isinstance(rows, list):
             raise ValueError(f"{path}: a TOML list needs [[records]] tables with recording and grade")
         items = [(f"{path} record {i + 1}", r) for i, r in enumerate(rows)]
+        for where, r in items:  # a misspelt key (``rigg``) would be dropped without a word
+            unknown = sorted(set(r) - set(_KEYS)) if isinstance(r, dict) else []
+            if unknown:
+                raise ValueError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))} (a record takes "
+                                 f"{', '.join(_KEYS)})")
     else:
         reader = csv.DictReader(text.splitlines())
         if not reader.fieldnames or not {"recording", "grade"} <= {f.strip() for f in reader.fieldnames}:

@@ -40,8 +40,8 @@ from hydromon.contract import CHANNELS, RigConfig
 from ..readings import longest_stretch
 from .equations import _Equations
 
-__all__ = ["EXCHANGE_LOG", "SPOOL_MOVES", "Exchange", "dead_channels", "dead_drive_words", "dead_words", "exchange",
-           "exchanged_words", "wiring_words"]
+__all__ = ["DRIVE_SAMPLES_S", "EXCHANGE_LOG", "SPOOL_MOVES", "Exchange", "dead_channels", "dead_drive_words",
+           "dead_words", "exchange", "exchanged_words", "wiring_words"]
 
 EXCHANGE_LOG = 0.5
 """Log factor [-] by which exchanging x3 and x4 must lower both the chamber equations' and the
@@ -50,6 +50,10 @@ force balance's residual variance for a record to be called exchanged (module do
 SPOOL_MOVES = 0.01
 """Share [-] of the spool's span (``x5_span``) that x5 must travel for a constant drive to be
 dead: 10 um on the default 1 mm span, where a held spool's sensor noise spans a few um."""
+
+DRIVE_SAMPLES_S = 2.0
+"""Samples [s, at the config's rate] that must carry a drive for a constant one to be dead: a
+few samples that happen to carry one say nothing of the valve."""
 
 _EXCHANGED = [0, 1, 3, 2, 4]  # ug, x1, x4, x3, x5
 _POSITIVE = ("m", "inv_beta_e", "CdW_sqrt_rho")  # what the exchanged fit must have positive to be called
@@ -80,10 +84,12 @@ def dead_words(samples: np.ndarray) -> str | None:
 def dead_drive_words(u: np.ndarray, x5: np.ndarray, config: RigConfig) -> str | None:
     """Why a record's valve drive ``u`` [V] cannot be trusted when it reads one value in every
     sample that carries it while the spool ``x5`` [m] of those samples moves by more than
-    ``SPOOL_MOVES`` of its span (the spool follows its drive); None: it varies, or the spool
-    holds still too (a held drive)."""
+    ``SPOOL_MOVES`` of its span (the spool follows its drive); None: it varies, the spool holds
+    still too (a held drive), or fewer than ``DRIVE_SAMPLES_S`` seconds of samples carry it."""
     u, x5 = np.asarray(u, dtype=float), np.asarray(x5, dtype=float)
-    if len(u) < 2 or np.ptp(u) != 0.0 or not np.ptp(x5) > SPOOL_MOVES * config.x5_span:
+    if len(u) < DRIVE_SAMPLES_S * config.sample_rate or np.ptp(u) != 0.0:
+        return None
+    if not np.ptp(x5) > SPOOL_MOVES * config.x5_span:
         return None
     return (f"u (the valve drive) is {u[0]:.6g} V in every sample that carries it while the spool moves "
             f"{1e3 * np.ptp(x5):.3g} mm: a drive not logged, or stuck (without the column the rig constants' loop "

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from hydromon.cli.main import main
@@ -30,6 +31,7 @@ def records(tmp_path_factory):
             s = run.samples.copy()
             s[:, 2] *= -1.0
             (d / "turned.csv").write_text(csv_text(run.t, s))
+            (d / "dead-drive.csv").write_text(csv_text(run.t, run.samples, np.zeros(len(run.t))))
     return d, paths
 
 
@@ -41,11 +43,13 @@ def _list(d, rows):
 
 def test_a_record_with_bad_input_is_left_out_and_said_so(records, tmp_path, capsys):
     d, paths = records
-    listed = _list(d, [(paths[g], g) for g in GRADES] + [(d / "turned.csv", "health")])
+    bad = [(d / "turned.csv", "health"), (d / "dead-drive.csv", "health")]
+    listed = _list(d, [(paths[g], g) for g in GRADES] + bad)
     out = tmp_path / "ranges.json"
     assert main(["calibrate", "--labelled", str(listed), "--out", str(out)]) == 0
-    err = capsys.readouterr().err
-    assert "turned.csv (health): left out: its input is bad" in " ".join(err.split()), err
+    err = " ".join(capsys.readouterr().err.split())
+    assert "turned.csv (health): left out: its input is bad" in err, err
+    assert "dead-drive.csv (health): left out: " in err and "u (the valve drive) is 0 V in every sample" in err, err
     edges = json.loads(out.read_text())
     assert edges  # written, from the five good records only
     # the same list without the bad record gives the same ranges
@@ -79,3 +83,17 @@ def test_commission_says_how_many_gaps_its_record_holds(tmp_path, capsys):
     main(["commission", str(path), "--out", str(tmp_path / "r.json"), "--runs", "0"])
     err = " ".join(capsys.readouterr().err.split())
     assert "rig csv, 26.0 s; 1 gap(s), 400 sample(s) missing;" in err, err
+
+
+def test_a_toml_list_with_a_misspelt_key_is_refused_naming_it(tmp_path):
+    """``rigg = "press-7"`` was dropped without a word, and the record read as the file's only rig."""
+    from hydromon.store.labelled import load_labelled
+
+    good = tmp_path / "good.toml"
+    good.write_text('[[records]]\nrecording = "a.mcap"\ngrade = "health"\nrig = "press-7"\n')
+    assert load_labelled(good)[0].rig == "press-7"
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[records]]\nrecording = "a.mcap"\ngrade = "health"\nrigg = "press-7"\n')
+    with pytest.raises(ValueError, match=r"bad.toml record 1: unknown key\(s\) 'rigg' \(a record takes recording, "
+                                         r"grade, rig\)"):
+        load_labelled(bad)

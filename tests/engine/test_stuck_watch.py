@@ -64,13 +64,37 @@ def test_a_stuck_pressure_says_bad_input_after_stuck_s_and_is_warned_once(run, c
     assert [w[0] for w in warned] == ["a"] and f"x{column + 1} has read" in warned[0][1], warned
 
 
-def test_a_rig_held_still_with_a_coarse_pressure_sensor_is_not_stuck():
-    """A pressure on a 10 kPa grid under a rig at rest repeats for good: no spool motion, no call."""
-    held = simulate(parse_profile("steps:low=2,high=2"), 30.0, params=degrade(0.3), seed=2)
+def test_a_held_pressure_is_stuck_only_while_the_spool_moves():
+    """A rig at rest with a pressure reading held exactly for 15 s (a coarse transducer): no call
+    while the spool holds still within its noise; the same reading under a spool that moves
+    50 um is stuck."""
+    held = simulate(parse_profile("steps:low=2,high=2"), 30.0, params=degrade(0.3), noise=noise_model("realistic"),
+                    seed=2)
     s = held.samples.copy()
-    s[:, 2:4] = np.round(s[:, 2:4] / 1e4) * 1e4
+    s[1000:2500, 2] = s[1000, 2]
+    assert np.ptp(s[1000:2500, 4]) < 0.01 * RigConfig().x5_span  # the held spool's noise
     health, warned = _run(_messages(held, s), batch=50)
     assert health and "bad-input" not in {h["status"] for h in health} and not warned
+    assert stuck_words(s, 100.0, RigConfig().x5_span) is None
+    s[1000:2500, 4] += 5e-5 * np.sin(np.linspace(0.0, 6.0, 1500))
+    health, warned = _run(_messages(held, s), batch=50)
+    assert "bad-input" in {h["status"] for h in health} and len(warned) == 1
+    assert stuck_words(s, 100.0, RigConfig().x5_span).startswith("x3 reads")
+
+
+def test_each_channel_s_stuck_stretch_is_warned_of_once(run):
+    """x3 sticking inside x4's stuck stretch: one warning each, not x4, x3, x4 again."""
+    s = _stuck(run, 3, 500, 2800)
+    s[1000:2300, 2] = s[1000, 2]
+    _, warned = _run(_messages(run, s), batch=50)
+    assert sorted(w[1][:2] for w in warned) == ["x3", "x4"], warned
+
+
+def test_a_dead_pressure_leaves_the_other_s_stuck_stretch_named(run):
+    """x3 dead throughout is the wiring check's to name; x4 stuck for 16 s is still said."""
+    s = _stuck(run, 3, 700, 2300)
+    s[:, 2] = 5e6
+    assert stuck_words(s, 100.0, RigConfig().x5_span).startswith("x4 reads")
 
 
 @pytest.mark.parametrize("profile", ["paper-var", "paper-id", "steps", "multisine"])

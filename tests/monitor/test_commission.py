@@ -100,3 +100,10 @@ def test_labelled_records_give_the_rigs_ranges_and_a_commissioned_file_fills_mis
     with pytest.raises(ValueError, match="no graded parameter could be calibrated: .*are the labels in reverse order"):
         calibrate_labelled(rows, 4 - labels, CFG)
     assert not calibrate_labelled(rows, labels, CFG).ungraded.keys() & {"K_sv", "C_ip", "C_ep"}
+    # a threshold the records cannot place (no fault record) keeps the commissioned one and its
+    # direction, whichever way the records' noise leans
+    two, two_labels = rows[labels <= 1].copy(), labels[labels <= 1]
+    c_ip = PARAM_NAMES.index("C_ip")
+    two[two_labels == 1, c_ip] = 0.999 * np.median(two[two_labels == 0, c_ip])  # noise leaning the other way
+    got = calibrate_labelled(two, two_labels, CFG, commissioned=commissioned.ranges)
+    assert got.params["C_ip"] == commissioned.ranges.params["C_ip"], got.ungraded

@@ -86,7 +86,12 @@ def run_labelled(args) -> int:
     baseline = Ranges.load(args.baseline) if args.baseline else None
     rows, labels, rig = [], [], None
     for i, e in enumerate(entries, 1):
-        rec = load_recording(e.path, rig=e.rig, config=config)
+        try:
+            rec = load_recording(e.path, rig=e.rig, config=config)
+        except ValueError as exc:  # refused by the reader (a dead drive, a broken file): one record, not the list
+            print(f"hydromon calibrate: {i}/{len(entries)} {e.path} ({GRADES[e.grade]}): left out: {exc}",
+                  file=sys.stderr)
+            continue
         if rig is None:
             rig = rec.config
         elif rec.config != rig:

@@ -98,17 +98,21 @@ function fmt(v) {
 }
 
 // time axis labels on a 24-hour clock and ISO dates, whatever the browser's locale (the page's
-// times name their zone)
+// times name their zone): dates alone for steps of days, with the time over a span of days,
+// fractions of a second for a recording made faster than real time
 function timeTicks(u, splits, axisIdx, space, incr) {
   const two = (n) => String(n).padStart(2, "0");
+  const frac = incr < 1 ? ((+incr.toFixed(3)).toString().split(".")[1] || "").length : 0;
+  const days = u && u.scales && u.scales.x.max - u.scales.x.min > 86400;
   return splits.map((t) => {
-    const d = new Date(t * 1000);
-    if (incr >= 86400) return d.getFullYear() + "-" + two(d.getMonth() + 1) + "-" + two(d.getDate());
-    let sec = incr < 60 ? ":" + two(d.getSeconds()) : "";
-    if (incr < 1) {  // a recording made faster than real time: its ticks are fractions of a second apart
-      sec += "." + String(d.getMilliseconds()).padStart(3, "0").slice(0, Math.min(3, Math.ceil(-Math.log10(incr))));
-    }
-    return two(d.getHours()) + ":" + two(d.getMinutes()) + sec;
+    const ms = Math.round(t * 1000);
+    const d = new Date(ms);
+    const date = d.getFullYear() + "-" + two(d.getMonth() + 1) + "-" + two(d.getDate());
+    if (incr >= 86400) return date;
+    let time = two(d.getHours()) + ":" + two(d.getMinutes());
+    if (incr < 60) time += ":" + two(d.getSeconds());
+    if (frac) time += "." + String(d.getMilliseconds()).padStart(3, "0").slice(0, frac);
+    return days ? date + " " + time : time;
   });
 }
 
