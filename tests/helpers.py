@@ -1,5 +1,5 @@
 """Shared test helpers: polling for a condition, where a rig's health messages fall, a taken port, node
-processes."""
+processes, a run fed to a MonitorCore."""
 
 from __future__ import annotations
 
@@ -309,3 +309,39 @@ class Procs:
                 p.wait(10)
         for log in self._logs:
             log.close()
+
+
+def core_messages(run, samples, frame=None, rig="a", ns="hydro"):
+    """A simulated run's ``samples`` as the bus messages of rig ``rig``: one per sample, or
+    frames of ``frame`` samples."""
+    from hydromon.engine.frames import frame_payload
+    from hydromon.engine.samples import sample_payload
+
+    if frame is None:
+        return [(f"{ns}/rig/{rig}/sample", sample_payload(k, float(run.t[k]), samples[k].tolist()))
+                for k in range(len(samples))]
+    return [(f"{ns}/rig/{rig}/frame", frame_payload(k, run.t[k:k + frame].tolist(), samples[k:k + frame].T.tolist()))
+            for k in range(0, len(samples), frame)]
+
+
+def run_core(msgs, batch=None, ns="hydro"):
+    """``msgs`` through a fresh MonitorCore, ``batch`` messages a call (None: all at once):
+    ``(health payloads, [(rig, warning)])``."""
+    from hydromon.engine.core import MonitorCore
+
+    warnings = []
+    core = MonitorCore(ns, on_warning=lambda rig, msg: warnings.append((rig, msg)))
+    out, step = [], batch or len(msgs)
+    for j in range(0, len(msgs), step):
+        out += core.process(msgs[j:j + step])
+    return [orjson.loads(p) for k, p in out if k.endswith("/health")], warnings
+
+
+def health_however_batched(run, samples, ns="hydro"):
+    """The health payloads of ``samples`` through a MonitorCore, asserted the same whether the
+    messages come all at once, in batches of 1, 7 or 64, or as frames of 10 three at a time."""
+    one, _ = run_core(core_messages(run, samples, ns=ns), ns=ns)
+    for batch in (1, 7, 64):
+        assert run_core(core_messages(run, samples, ns=ns), batch, ns)[0] == one, batch
+    assert run_core(core_messages(run, samples, frame=10, ns=ns), 3, ns)[0] == one
+    return one

@@ -60,25 +60,23 @@ def stuck_runs(rows, p3, p4, x5, prev3, prev4, run3, run4, lo3, hi3, lo4, hi4, m
         r = rows[i]
         at = seen[r] + count[r]
         count[r] += 1
-        v = x5[i]
-        if p3[i] == prev3[r]:
-            run3[r] += 1
-            lo3[r] = min(lo3[r], v)
-            hi3[r] = max(hi3[r], v)
-        else:
-            run3[r], lo3[r], hi3[r] = 0, v, v
-        if p4[i] == prev4[r]:
-            run4[r] += 1
-            lo4[r] = min(lo4[r], v)
-            hi4[r] = max(hi4[r], v)
-        else:
-            run4[r], lo4[r], hi4[r] = 0, v, v
-        prev3[r], prev4[r] = p3[i], p4[i]
-        if run3[r] >= need and hi3[r] - lo3[r] > moves[r]:
-            began3[i] = at - run3[r]
-        if run4[r] >= need and hi4[r] - lo4[r] > moves[r]:
-            began4[i] = at - run4[r]
+        began3[i] = _held(p3[i], x5[i], r, at, prev3, run3, lo3, hi3, moves[r], need)
+        began4[i] = _held(p4[i], x5[i], r, at, prev4, run4, lo4, hi4, moves[r], need)
     return began3, began4
+
+
+@njit(cache=True, inline="always")
+def _held(p, v, r, at, prev, run, lo, hi, moves, need):
+    """One pressure reading ``p`` [Pa] of row ``r`` under spool ``v`` [m], its ``at``-th sample:
+    its run and the spool's extremes moved on (in place); where its stuck stretch began, or -1."""
+    if p == prev[r]:
+        run[r] += 1
+        lo[r] = min(lo[r], v)
+        hi[r] = max(hi[r], v)
+    else:
+        run[r], lo[r], hi[r] = 0, v, v
+    prev[r] = p
+    return at - run[r] if run[r] >= need and hi[r] - lo[r] > moves else -1
 
 
 def _one_row_runs(s: np.ndarray, moves: float, need: int) -> tuple[np.ndarray, np.ndarray]:

@@ -8,9 +8,8 @@ import orjson
 import pytest
 
 from hydromon.engine.core import MonitorCore
-from hydromon.engine.frames import frame_payload
 from hydromon.engine.frozen_watch import FROZEN_S
-from hydromon.engine.samples import sample_payload
+from helpers import core_messages, health_however_batched, run_core
 from plant_sim.degradation import degrade
 from plant_sim.noise import noise_model
 from plant_sim.profiles import parse_profile
@@ -33,21 +32,11 @@ def _frozen(run, spans):
 
 
 def _messages(run, samples, frame=None, rig="a"):
-    if frame is None:
-        return [(f"{NS}/rig/{rig}/sample", sample_payload(k, float(run.t[k]), samples[k].tolist()))
-                for k in range(len(samples))]
-    return [(f"{NS}/rig/{rig}/frame", frame_payload(k, run.t[k:k + frame].tolist(), samples[k:k + frame].T.tolist()))
-            for k in range(0, len(samples), frame)]
+    return core_messages(run, samples, frame, rig, NS)
 
 
 def _run(msgs, batch=None):
-    warnings = []
-    core = MonitorCore(NS, on_warning=lambda rig, msg: warnings.append((rig, msg)))
-    out, step = [], batch or len(msgs)
-    for j in range(0, len(msgs), step):
-        out += core.process(msgs[j:j + step])
-    health = [orjson.loads(p) for k, p in out if k.endswith("/health")]
-    return health, warnings
+    return run_core(msgs, batch, NS)
 
 
 def test_a_rig_whose_readings_stop_changing_says_bad_input_from_two_seconds_on_and_is_warned_once(run):
@@ -71,11 +60,7 @@ def test_a_record_that_never_freezes_is_never_flagged(run):
 
 def test_the_health_does_not_depend_on_how_the_messages_were_batched_or_framed(run):
     s = _frozen(run, [(650, 990)])
-    one, _ = _run(_messages(run, s))
-    assert any(h["status"] == "bad-input" for h in one)
-    for batch in (1, 7, 64):
-        assert _run(_messages(run, s), batch)[0] == one, batch
-    assert _run(_messages(run, s, frame=10), batch=3)[0] == one
+    assert any(h["status"] == "bad-input" for h in health_however_batched(run, s, NS))
 
 
 def test_a_forgotten_rig_s_row_carries_no_reading_into_the_next_rig(run):

@@ -5,16 +5,13 @@ estimates would otherwise fit as they can; ``evaluate`` says the same of a recor
 from __future__ import annotations
 
 import numpy as np
-import orjson
 import pytest
 
 from hydromon.contract import RigConfig
-from hydromon.engine.core import MonitorCore
 from hydromon.engine.evaluate import evaluate
-from hydromon.engine.frames import frame_payload
 from hydromon.engine.record import Recording
-from hydromon.engine.samples import sample_payload
 from hydromon.engine.stuck_watch import STUCK_S, stuck_words
+from helpers import core_messages, health_however_batched, run_core
 from plant_sim.degradation import degrade
 from plant_sim.noise import noise_model
 from plant_sim.profiles import parse_profile
@@ -37,20 +34,11 @@ def _stuck(run, column, a, b):
 
 
 def _messages(run, samples, frame=None, rig="a"):
-    if frame is None:
-        return [(f"{NS}/rig/{rig}/sample", sample_payload(k, float(run.t[k]), samples[k].tolist()))
-                for k in range(len(samples))]
-    return [(f"{NS}/rig/{rig}/frame", frame_payload(k, run.t[k:k + frame].tolist(), samples[k:k + frame].T.tolist()))
-            for k in range(0, len(samples), frame)]
+    return core_messages(run, samples, frame, rig, NS)
 
 
 def _run(msgs, batch=None):
-    warnings = []
-    core = MonitorCore(NS, on_warning=lambda rig, msg: warnings.append((rig, msg)))
-    out, step = [], batch or len(msgs)
-    for j in range(0, len(msgs), step):
-        out += core.process(msgs[j:j + step])
-    health = [orjson.loads(p) for k, p in out if k.endswith("/health")]
+    health, warnings = run_core(msgs, batch, NS)
     return health, [w for w in warnings if "dead or stuck pressure sensor" in w[1]]
 
 
@@ -113,11 +101,7 @@ def test_a_right_record_is_never_flagged_even_on_a_coarse_grid(profile, noise):
 
 def test_the_health_does_not_depend_on_how_the_messages_were_batched_or_framed(run):
     s = _stuck(run, 2, 400, 1900)
-    one, _ = _run(_messages(run, s))
-    assert any(h["status"] == "bad-input" for h in one)
-    for batch in (1, 7, 64):
-        assert _run(_messages(run, s), batch)[0] == one, batch
-    assert _run(_messages(run, s, frame=10), batch=3)[0] == one
+    assert any(h["status"] == "bad-input" for h in health_however_batched(run, s, NS))
 
 
 def test_evaluate_names_the_stuck_pressure_and_where(run):
