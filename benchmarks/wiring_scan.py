@@ -21,9 +21,11 @@ from monitor.audit.wiring import exchange
 NOISES = ("none", "realistic", "stress")
 
 
-def _scan(effects: dict, base: int, repeats: int) -> tuple[int, int, int, list]:
-    """(records, false alarms, detections, [(margin, label)]) over one effect set."""
-    n = alarms = found = 0
+def _scan(effects: dict, base: int, repeats: int) -> tuple[int, int, str, list]:
+    """(records, false alarms, detections per noise level in words, [(margin, label)]) over one
+    effect set."""
+    n = alarms = 0
+    found = {noise: [0, 0] for noise in NOISES}  # exchanged copies named, records
     near = []
     cells = itertools.product(("ref", "rig"), PROFILES, BANDS, NOISES, range(repeats))
     for i, (kind, profile, band, noise, _) in enumerate(cells):
@@ -35,9 +37,12 @@ def _scan(effects: dict, base: int, repeats: int) -> tuple[int, int, int, list]:
             continue
         n += 1
         alarms += as_is.called
-        found += other.called
+        found[noise][0] += other.called
+        found[noise][1] += 1
         near.append((min(as_is.chamber, as_is.force), f"{kind} {profile} severity {sev:.2f} {noise} seed {seed}"))
-    return n, alarms, found, sorted(near, reverse=True)[:2]
+    named = sum(f[0] for f in found.values())
+    words = f"{named} ({', '.join(f'{noise} {f[0]}/{f[1]}' for noise, f in found.items())})"
+    return n, alarms, words, sorted(near, reverse=True)[:2]
 
 
 def main() -> None:
@@ -49,10 +54,11 @@ def main() -> None:
     sets = [("clean", {})]
     if a.effects:
         sets += [(name, {name: c[2]}) for name, c in CLAIMS.items()] + [(name, {name: 1}) for name in OUTSIDE]
-    print(f"{'records':24s} {'n':>5s} {'false alarms':>13s} {'exchanged found':>16s}  nearest to a false alarm (log)")
+    print(f"{'records':20s} {'n':>5s} {'false alarms':>13s}  {'exchanged copies named':44s}  "
+          "nearest to a false alarm (log)")
     for k, (label, effects) in enumerate(sets):
         n, alarms, found, near = _scan(effects, a.seed_base + 1000 * k, a.repeats)
-        print(f"{label:24s} {n:5d} {alarms:13d} {found:16d}  " + "; ".join(f"{m:+.2f} {w}" for m, w in near),
+        print(f"{label:20s} {n:5d} {alarms:13d}  {found:44s}  " + "; ".join(f"{m:+.2f} {w}" for m, w in near),
               flush=True)
 
 
