@@ -49,7 +49,8 @@ force balance's residual variance for a record to be called exchanged (module do
 
 SPOOL_MOVES = 0.01
 """Share [-] of the spool's span (``x5_span``) that x5 must travel for a constant drive to be
-dead: 10 um on the default 1 mm span, where a held spool's sensor noise spans a few um."""
+dead, or a held pressure stuck (``hydromon.engine.stuck_watch``): 10 um on the default 1 mm
+span, where a held spool's sensor noise spans a few um (6.5 um over 10 s at stress noise)."""
 
 DRIVE_SAMPLES_S = 2.0
 """Samples [s, at the config's rate] that must carry a drive for a constant one to be dead: a
