@@ -41,7 +41,7 @@ class Evaluation:
     uncalibrated: str | None = None  # why no ranges grade the rig (None: some do)
     units: str | None = None  # why the readings (glitches mended) cannot be in the config's units
     frozen: str | None = None  # why the readings cannot be trusted: they stopped changing (a stall, a stuck pressure)
-    wiring: str | None = None  # why the sensors look wired wrong: a dead channel, exchanged pressures
+    wiring: str | None = None  # why the sensors look wired wrong: a dead channel, exchanged pressures (grade withheld)
 
     @property
     def status(self) -> str:
@@ -50,10 +50,10 @@ class Evaluation:
         (``monitor.readings``) or the readings repeat one reading for 2 s
         (``hydromon.engine.frozen_watch``) or a chamber pressure holds one under a moving spool
         for 10 s (``hydromon.engine.stuck_watch``) or the sensors look wired wrong
-        (``monitor.audit.wiring``), ``uncalibrated`` when no ranges were made for the rig's
-        constants, ``ok`` once converged with a grade placed, else ``converging`` (the live
-        monitor's statuses: a converged rig whose grade cannot be placed, level -1, is still
-        converging)."""
+        (``monitor.audit.wiring``; the grade is then withheld, ``unknown``), ``uncalibrated`` when
+        no ranges were made for the rig's constants, ``ok`` once converged with a grade placed,
+        else ``converging`` (the live monitor's statuses: a converged rig whose grade cannot be
+        placed, level -1, is still converging)."""
         a = self.assessment
         return health_status(self.bad_input_words is not None, False, a.converged, a.level, self.uncalibrated is None)
 
@@ -85,12 +85,15 @@ def evaluate(recording: Recording, ranges: Ranges | None = None,
     events, assessment = pipe.run(recording.samples, recording.restarts)
     ref = _refine(recording, options, assessment) if refined else None
     why = pipe.fleet.why[0]
+    wiring = wiring_words(recording.samples, recording.config, recording.restarts)
+    if wiring is not None:  # every estimate came from the wrong wiring: a grade made of them would lie
+        assessment = replace(assessment, level=-1, confidence=0.0,
+                             param_levels=dict.fromkeys(assessment.param_levels, -1))
     return Evaluation(recording, assessment, ref, pipe.fleet.glitches(0), events,
                       pipe.fleet.ranges if why is None else None, pipe.fleet.x1_clamped(0), options,
                       uncalibrated=None if why is None else f"{why}; {COMMISSION_HINT}",
                       units=record_slip(recording.samples, recording.config, options, recording.restarts),
-                      frozen=_frozen(recording),
-                      wiring=wiring_words(recording.samples, recording.config, recording.restarts))
+                      frozen=_frozen(recording), wiring=wiring)
 
 
 def _frozen(recording: Recording) -> str | None:

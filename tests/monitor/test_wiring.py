@@ -64,7 +64,7 @@ def test_the_longest_stretch_is_judged_when_the_record_has_gaps():
 
 def test_evaluate_says_an_exchanged_record_is_not_to_be_trusted(tmp_path, capsys):
     """A healthy rig's record with x3 and x4 exchanged was graded health, ok: now bad-input, with
-    why, in the JSON and the exit code."""
+    why and the grade withheld, in the JSON and the exit code."""
     x, cfg = _case("ref", "paper-var", "realistic", 7, duration=30.0)
     t = np.arange(len(x)) / cfg.sample_rate
     (tmp_path / "right.csv").write_text(csv_text(t, x))
@@ -75,6 +75,7 @@ def test_evaluate_says_an_exchanged_record_is_not_to_be_trusted(tmp_path, capsys
     assert main(["evaluate", str(tmp_path / "exchanged.csv"), "--json"]) == 1
     got = json.loads(capsys.readouterr().out)
     assert got["status"] == "bad-input" and got["wiring"].startswith("x3 and x4 look exchanged"), got
+    assert got["grade"] == "unknown" and got["level"] is None and got["confidence"] == 0.0, got  # withheld
     main(["evaluate", str(tmp_path / "exchanged.csv")])
     assert "not to be trusted: x3 and x4 look exchanged" in " ".join(capsys.readouterr().out.split())
 
