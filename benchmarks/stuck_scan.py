@@ -18,7 +18,7 @@ import itertools
 import numpy as np
 
 from hydromon.engine.stuck_watch import _one_row_runs, stuck_words
-from hydromon.tools.audit_cases import BANDS, CLAIMS, OUTSIDE, PROFILES, _drawn, _record
+from hydromon.tools.audit_cases import BANDS, PROFILES, _drawn, _record, largest_effect_sets
 from monitor.audit.wiring import SPOOL_MOVES
 
 NOISES = ("none", "realistic", "stress")
@@ -42,9 +42,7 @@ def main() -> None:
     ap.add_argument("--grid-x5", type=float, default=5e-7, help="spool grid [m] (0: as simulated)")
     ap.add_argument("--effects", action="store_true", help="also each effect at its largest magnitude")
     a = ap.parse_args()
-    sets = [("clean", {})]
-    if a.effects:
-        sets += [(name, {name: c[2]}) for name, c in CLAIMS.items()] + [(name, {name: 1}) for name in OUTSIDE]
+    sets = largest_effect_sets(a.effects)
     print(f"{'records':24s} {'n':>5s} {'called':>7s} {'stuck found':>12s}  "
           "longest held pressure under a moving spool [s]")
     for k, (label, effects) in enumerate(sets):

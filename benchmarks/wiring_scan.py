@@ -15,7 +15,7 @@ jitcache.configure()  # before any kernel is imported
 import argparse
 import itertools
 
-from hydromon.tools.audit_cases import BANDS, CLAIMS, OUTSIDE, PROFILES, _drawn, _record
+from hydromon.tools.audit_cases import BANDS, PROFILES, _drawn, _record, largest_effect_sets
 from monitor.audit.wiring import exchange
 
 NOISES = ("none", "realistic", "stress")
@@ -51,9 +51,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1, help="records per cell (default 1: 120 records per effect set)")
     ap.add_argument("--effects", action="store_true", help="also each effect at its largest magnitude")
     a = ap.parse_args()
-    sets = [("clean", {})]
-    if a.effects:
-        sets += [(name, {name: c[2]}) for name, c in CLAIMS.items()] + [(name, {name: 1}) for name in OUTSIDE]
+    sets = largest_effect_sets(a.effects)
     print(f"{'records':20s} {'n':>5s} {'false alarms':>13s}  {'exchanged copies named':44s}  "
           "nearest to a false alarm (log)")
     for k, (label, effects) in enumerate(sets):

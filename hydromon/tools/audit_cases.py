@@ -94,6 +94,16 @@ def _pair_cases(repeats):
             for profile in PROFILES for sev in BANDS for k in range(repeats)]
 
 
+def largest_effect_sets(effects: bool = True) -> list[tuple[str, dict]]:
+    """``(label, effects)``: a clean set, then (``effects``) each effect of ``CLAIMS`` at its
+    largest magnitude and each of ``OUTSIDE``, for the scans that ask what an effect does to a
+    check meant for right records (``benchmarks/wiring_scan.py``, ``benchmarks/stuck_scan.py``)."""
+    sets = [("clean", {})]
+    if effects:
+        sets += [(name, {name: c[2]}) for name, c in CLAIMS.items()] + [(name, {name: 1}) for name in OUTSIDE]
+    return sets
+
+
 def _rig_cases(repeats):
     """``--rigs N``: N records per effect (and clean), profile, band and noise level, each on a rig
     of its own (``_record``), the effect at ``RIG_MULTIPLE`` times its claimed limit."""
