@@ -139,7 +139,7 @@ class MonitorCore(RegularBatch, FrameBatch, RigTable, FrameInput, UnitsWatch, Fr
             setattr(self, name, np.full(16, value, dtype=dtype))
         # each row's bounds, set with its rig, and the tightest of them (hydromon.engine.units_watch)
         self._limits, self._units_live = np.zeros((0, 4)), False
-        self._prev = np.zeros((0, 5))  # each row's last sample (hydromon.engine.frozen_watch)
+        self._prev = np.full((len(self._last), 5), np.nan)  # each row's last sample (frozen_watch); rows as ROW_STATE's
         self._tight = np.array([np.inf, np.inf, np.inf, -np.inf])
         self._clear()
 

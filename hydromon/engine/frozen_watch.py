@@ -19,14 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FROZEN_S", "FrozenWatch", "frozen_words"]
+__all__ = ["FROZEN_S", "FrozenWatch", "frozen_words", "repeats_in"]
 
 FROZEN_S = 2.0  # [s] every channel repeating its reading this long is a stalled acquisition
 
 
-def _frozen_samples(sample_rate: float) -> int:
-    """Repeats in a row [samples] that make a freeze at ``sample_rate`` [Hz]."""
-    return max(2, int(round(FROZEN_S * sample_rate)))
+def repeats_in(seconds: float, sample_rate: float) -> int:
+    """Repeats in a row [samples] that hold a reading for ``seconds`` [s] at ``sample_rate`` [Hz]
+    (at least 2); the frozen and the stuck-pressure watch count their stretches so."""
+    return max(2, int(round(seconds * sample_rate)))
 
 
 def frozen_words(samples: np.ndarray, sample_rate: float) -> str | None:
@@ -43,7 +44,7 @@ def frozen_words(samples: np.ndarray, sample_rate: float) -> str | None:
         return None
     k = int(np.argmax(ends - starts))
     run = int(ends[k] - starts[k])
-    if run < _frozen_samples(sample_rate):
+    if run < repeats_in(FROZEN_S, sample_rate):
         return None
     return (f"ug, x1, x3, x4 and x5 repeat one reading for {run / sample_rate:g} s from sample {int(starts[k])}: a "
             "stalled acquisition re-sending its last reading, or a record made up of one sample? The estimates "
@@ -59,9 +60,6 @@ class FrozenWatch:
         """Before the health of a batch: the evaluations of ``ev`` at which their rig's readings
         have repeated for ``FROZEN_S`` say ``bad-input``; a rig is warned of once a freeze
         (``rows`` (m,), ``vals`` (m, 6): t, ug, x1, x3, x4, x5, the batch's samples in order)."""
-        n_rows = len(self._same)
-        if len(self._prev) < n_rows:
-            self._prev = np.concatenate([self._prev, np.full((n_rows - len(self._prev), 5), np.nan)])
         order = np.argsort(rows, kind="stable")
         r_s, v_s = rows[order], vals[order, 1:]
         first = np.ones(len(r_s), dtype=np.bool_)
@@ -88,7 +86,7 @@ class FrozenWatch:
         self._watched[r_s[last]] = index[last] + 1
         self._same[r_s[last]] = run[last]
         self._prev[r_s[last]] = v_s[last]
-        need = _frozen_samples(self.fleet.sample_rate)
+        need = repeats_in(FROZEN_S, self.fleet.sample_rate)
         if not len(ev) or run.max(initial=0) < need:
             return
         at = np.empty(len(r_s), dtype=np.int64)

@@ -113,6 +113,7 @@ class RigTable:
                 grow = len(self._last)
                 for name, value, dtype in ROW_STATE:
                     setattr(self, name, np.concatenate([getattr(self, name), np.full(grow, value, dtype=dtype)]))
+                self._prev = np.concatenate([self._prev, np.full((grow, 5), np.nan)])
             rig = self.rigs[rig_id] = Rig(row, config)
             self._set_limits(row, config)
             if row < len(self._health_keys):
@@ -146,8 +147,7 @@ class RigTable:
             self._frame_rigs.pop(frame_key(rig_id, self.namespace), None)
             for name, value, _ in ROW_STATE:
                 getattr(self, name)[r] = value
-            if r < len(self._prev):
-                self._prev[r] = np.nan  # the next rig in this row repeats nothing of this one
+            self._prev[r] = np.nan  # the next rig in this row repeats nothing of this one
             if rig_id in self.configs:
                 self._unused[rig_id] = None
             done.append(rig_id)

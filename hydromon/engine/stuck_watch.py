@@ -27,17 +27,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from hydromon.engine.frozen_watch import repeats_in
 from monitor.audit.wiring import SPOOL_MOVES
 from monitor.readings import RANGE
 
 __all__ = ["STUCK_S", "StuckWatch", "stuck_runs", "stuck_words"]
 
 STUCK_S = 10.0  # [s] a chamber pressure repeating its reading this long under a moving spool is stuck
-
-
-def _stuck_samples(sample_rate: float) -> int:
-    """Repeats in a row [samples] that make a stuck pressure at ``sample_rate`` [Hz]."""
-    return max(2, int(round(STUCK_S * sample_rate)))
 
 
 @njit(cache=True)
@@ -96,7 +92,7 @@ def stuck_words(samples: np.ndarray, sample_rate: float, x5_span: float) -> str 
     s = np.asarray(samples, dtype=float)
     if len(s) < 2:
         return None
-    began = _one_row_runs(s, SPOOL_MOVES * x5_span, _stuck_samples(sample_rate))
+    began = _one_row_runs(s, SPOOL_MOVES * x5_span, repeats_in(STUCK_S, sample_rate))
     found = []
     for k, b in zip((3, 4), began):
         col, hit = k - 1, np.flatnonzero(b >= 0)  # x3, x4 are columns 2, 3
@@ -121,15 +117,13 @@ class StuckWatch:
         rig's x3 or x4 is stuck say ``bad-input``; a rig is warned of once a stuck stretch
         (``rows`` (m,), ``vals`` (m, 6): t, ug, x1, x3, x4, x5, the batch's samples in order)."""
         n_rows = len(self._run3)
-        if len(self._prev) < n_rows:
-            self._prev = np.concatenate([self._prev, np.full((n_rows - len(self._prev), 5), np.nan)])
         prev3, prev4 = self._prev[:, 2].copy(), self._prev[:, 3].copy()  # the frozen watch moves _prev on
         moves = np.full(n_rows, np.inf)  # [m] per row; rows without a rig yet hold nothing
         known = min(n_rows, len(self._limits))
         moves[:known] = SPOOL_MOVES * self._limits[:known, 1] / RANGE  # the limits hold RANGE x5 spans
+        need = repeats_in(STUCK_S, self.fleet.sample_rate)
         began = stuck_runs(rows, vals[:, 3], vals[:, 4], vals[:, 5], prev3, prev4, self._run3, self._run4,
-                           self._lo3, self._hi3, self._lo4, self._hi4, moves, _stuck_samples(self.fleet.sample_rate),
-                           self._watched)
+                           self._lo3, self._hi3, self._lo4, self._hi4, moves, need, self._watched)
         if not len(ev) or (began[0].max(initial=-1) < 0 and began[1].max(initial=-1) < 0):
             return
         for k, b, warned in zip((3, 4), began, (self._stuck_from3, self._stuck_from4)):

@@ -2,9 +2,9 @@
 which grade (e.g. from maintenance records), as CSV or TOML.
 
 CSV: a header ``recording,grade`` and optionally ``rig`` (other columns, notes say, are
-ignored); TOML: ``[[records]]`` tables with the same keys and no other. ``recording`` is a .mcap or .csv path, relative to the list file's directory unless
-absolute; ``grade`` one of health, sub-health, average, deterioration, fault (or 0-4); ``rig``
-picks the rig of a multi-rig MCAP.
+ignored); TOML: ``[[records]]`` tables with the same keys and no other. ``recording`` is a .mcap
+or .csv path, relative to the list file's directory unless absolute; ``grade`` one of health,
+sub-health, average, deterioration, fault (or 0-4); ``rig`` picks the rig of a multi-rig MCAP.
 """
 
 from __future__ import annotations
